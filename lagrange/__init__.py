@@ -1,0 +1,40 @@
+"""lagrange: exact, fast, differentiable dynamics of planar kinematic chains in pure JAX."""
+
+from lagrange.chain import Chain, Link
+from lagrange.dynamics import (
+    actuation_matrix,
+    bias_forces,
+    energy,
+    forward_dynamics,
+    gravity_forces,
+    inverse_dynamics,
+    mass_matrix,
+)
+from lagrange.integrate import Trajectory, simulate, step
+from lagrange.kinematics import com_positions, positions
+from lagrange.solvers import RK4, Dopri5, Dopri8, Euler, SemiImplicitEuler, Tsit5
+from lagrange import systems
+
+__all__ = [
+    "RK4",
+    "Dopri5",
+    "Dopri8",
+    "Euler",
+    "SemiImplicitEuler",
+    "Tsit5",
+    "Trajectory",
+    "simulate",
+    "step",
+    "systems",
+    "Chain",
+    "Link",
+    "actuation_matrix",
+    "bias_forces",
+    "com_positions",
+    "energy",
+    "forward_dynamics",
+    "gravity_forces",
+    "inverse_dynamics",
+    "mass_matrix",
+    "positions",
+]

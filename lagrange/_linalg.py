@@ -1,0 +1,71 @@
+"""Small symmetric positive-definite solves, unrolled at trace time.
+
+For the few-link chains this library is built for, a LAPACK call inside a ``scan`` costs far
+more than the arithmetic. An LDL^T factorisation written out over scalars fuses into the
+surrounding elementwise kernel instead. Larger systems use a dense Cholesky solve.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import jax.scipy.linalg as jsl
+
+from lagrange import _scalar as s
+
+UNROLL_MAX = 10
+"""Largest n solved by the unrolled LDL^T; above it a dense Cholesky solve is used."""
+
+
+def solve_spd(M, b, like):
+    """Solve ``M x = b`` for symmetric positive-definite ``M``.
+
+    ``M`` is a nested list of scalars (only ``M[i][j]`` with ``j <= i`` is read), ``b`` a list of
+    scalars. Returns a list of scalars.
+    """
+    n = len(b)
+    if n > UNROLL_MAX:
+        A = to_array(M, like, symmetric=True)
+        rhs = jnp.stack([s.as_array(x, like) for x in b], axis=-1)
+        factor = jnp.linalg.cholesky(A)
+        x = jsl.cho_solve((factor, True), rhs[..., None])[..., 0] if A.ndim == 2 else _batched_cho(factor, rhs)
+        return [x[..., i] for i in range(n)]
+    L = [[0.0] * n for _ in range(n)]
+    inv_d = [0.0] * n
+    d = [0.0] * n
+    for j in range(n):
+        dj = M[j][j]
+        for k in range(j):
+            dj = s.sub(dj, s.mul(s.mul(L[j][k], L[j][k]), d[k]))
+        d[j] = dj
+        inv_d[j] = s.div(1.0, dj)
+        for i in range(j + 1, n):
+            lij = M[i][j]
+            for k in range(j):
+                lij = s.sub(lij, s.mul(s.mul(L[i][k], L[j][k]), d[k]))
+            L[i][j] = s.mul(lij, inv_d[j])
+    y = list(b)
+    for i in range(n):
+        for k in range(i):
+            y[i] = s.sub(y[i], s.mul(L[i][k], y[k]))
+    x = [s.mul(y[i], inv_d[i]) for i in range(n)]
+    for i in reversed(range(n)):
+        for k in range(i + 1, n):
+            x[i] = s.sub(x[i], s.mul(L[k][i], x[k]))
+    return x
+
+
+def _batched_cho(factor, rhs):
+    y = jsl.solve_triangular(factor, rhs[..., None], lower=True)
+    return jsl.solve_triangular(jnp.swapaxes(factor, -1, -2), y, lower=False)[..., 0]
+
+
+def to_array(M, like, symmetric: bool = False):
+    n = len(M)
+    rows = []
+    for i in range(n):
+        row = []
+        for j in range(n):
+            x = M[max(i, j)][min(i, j)] if symmetric else M[i][j]
+            row.append(s.as_array(x, like))
+        rows.append(jnp.stack(row, axis=-1))
+    return jnp.stack(rows, axis=-2)

@@ -1,0 +1,169 @@
+"""Equations of motion ``M(q) qdd + C(q, qd) qd + T(q) + D qd = B u``, derived by autodiff.
+
+The kinetic energy of a planar chain is ``T = 1/2 sum_i (m_i |J_i qd|^2 + I_i (s_i qd)^2)
++ 1/2 sum_j a_j qd_j^2``, with ``J_i`` the Jacobian of link i's centre of mass and ``s_i`` the
+0/1 row of the revolute joints before it. Lagrange's equations then give
+
+- ``M = d2T/dqd2 = sum_i m_i J_i^T J_i + I_i s_i^T s_i + diag(armature)``,
+- ``C qd = sum_i m_i J_i^T (dJ_i/dt) qd`` (the velocity-product acceleration of each centre of
+  mass, pulled back to the joints; the planar rotation terms have none),
+- ``T(q) = dV/dq = sum_i m_i g J_i^T e_z``.
+
+Both ``J_i`` and ``(dJ_i/dt) qd`` are computed by sparse second-order forward-mode autodiff
+of the forward kinematics (:mod:`lagrange._jet`), simplified at trace time, so the compiled
+program contains only the terms the chain has. :mod:`lagrange.euler_lagrange` derives the same
+quantities literally (Hessians of the Lagrangian) and serves as the check.
+
+All functions are pure, accept leading batch dimensions on ``q``/``qd``/``u`` and are safe
+under ``jit``, ``vmap`` and ``grad``.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from lagrange import _scalar as s
+from lagrange._linalg import solve_spd, to_array
+from lagrange.chain import Chain
+from lagrange.kinematics import frames
+
+
+def _check(chain: Chain, name: str, x, size: int):
+    shape = jnp.shape(x)
+    if len(shape) == 0 or shape[-1] != size:
+        raise ValueError(f"{name} must have shape (..., {size}) for this chain, got {shape}")
+
+
+def _mass_entries(chain: Chain, f) -> list[list]:
+    """Lower triangle of M as nested lists of scalars."""
+    n = chain.n
+    M = [[0.0] * n for _ in range(n)]
+    for i, (cx, cz) in enumerate(f.com):
+        m = chain.mass[i]
+        cols = sorted(set(cx.g) | set(cz.g))
+        for a, j in enumerate(cols):
+            for k in cols[: a + 1]:
+                jj, kk = max(j, k), min(j, k)
+                dot = s.add(
+                    s.mul(cx.g.get(j, 0.0), cx.g.get(k, 0.0)), s.mul(cz.g.get(j, 0.0), cz.g.get(k, 0.0))
+                )
+                M[jj][kk] = s.add(M[jj][kk], s.mul(m, dot))
+        rev = f.revolute_before[i]
+        for a, j in enumerate(rev):
+            for k in rev[: a + 1]:
+                M[max(j, k)][min(j, k)] = s.add(M[max(j, k)][min(j, k)], chain.inertia[i])
+    for j in chain.armatured:
+        M[j][j] = s.add(M[j][j], chain.armature[j])
+    return M
+
+
+def _generalized(chain: Chain, f, qd, *, velocity: bool, gravity: bool) -> list:
+    """sum_i J_i^T F_i for the force F_i = m_i (a_i + g e_z) on each centre of mass."""
+    n = chain.n
+    out = [0.0] * n
+    g = chain.gravity if (gravity and chain.gravity is not None) else 0.0
+    for i, (cx, cz) in enumerate(f.com):
+        m = chain.mass[i]
+        fx = s.mul(m, cx.a) if velocity else 0.0
+        fz = s.mul(m, s.add(cz.a if velocity else 0.0, g))
+        for j in set(cx.g) | set(cz.g):
+            out[j] = s.add(out[j], s.add(s.mul(cx.g.get(j, 0.0), fx), s.mul(cz.g.get(j, 0.0), fz)))
+    if velocity and chain.damping is not None:
+        qds = [qd[..., j] for j in range(n)]
+        for j in chain.damped:
+            out[j] = s.add(out[j], s.mul(chain.damping[j], qds[j]))
+    return out
+
+
+def _stack(xs, like):
+    return jnp.stack([s.as_array(x, like) for x in xs], axis=-1)
+
+
+def mass_matrix(chain: Chain, q) -> jnp.ndarray:
+    """Mass matrix ``M(q)``, shape ``(..., n, n)``, symmetric positive definite."""
+    _check(chain, "q", q, chain.n)
+    f = frames(chain, q)
+    return to_array(_mass_entries(chain, f), q[..., 0], symmetric=True)
+
+
+def bias_forces(chain: Chain, q, qd) -> jnp.ndarray:
+    """``C(q, qd) qd + T(q) + D qd``, shape ``(..., n)``: what the joints must supply at ``qdd = 0``."""
+    _check(chain, "q", q, chain.n)
+    _check(chain, "qd", qd, chain.n)
+    f = frames(chain, q, qd)
+    return _stack(_generalized(chain, f, qd, velocity=True, gravity=True), q[..., 0])
+
+
+def gravity_forces(chain: Chain, q) -> jnp.ndarray:
+    """``T(q) = dV/dq``, shape ``(..., n)``."""
+    _check(chain, "q", q, chain.n)
+    f = frames(chain, q)
+    return _stack(_generalized(chain, f, None, velocity=False, gravity=True), q[..., 0])
+
+
+def actuation_matrix(chain: Chain) -> jnp.ndarray:
+    """``B``, shape ``(n, m)``: ``B[actuated[k], k] = gear[k]``."""
+    B = jnp.zeros((chain.n, chain.m), dtype=chain.mass.dtype)
+    for k, j in enumerate(chain.actuated):
+        B = B.at[j, k].set(chain.gear[k])
+    return B
+
+
+def _actuation(chain: Chain, u) -> list:
+    out = [0.0] * chain.n
+    if chain.m:
+        _check(chain, "u", u, chain.m)
+        for k, j in enumerate(chain.actuated):
+            out[j] = s.mul(chain.gear[k], u[..., k])
+    return out
+
+
+def forward_dynamics(chain: Chain, q, qd, u=None) -> jnp.ndarray:
+    """Joint accelerations ``qdd = M^-1 (B u - C qd - T - D qd)``, shape ``(..., n)``.
+
+    ``u`` has shape ``(..., m)``; it may be ``None`` (no control) or omitted for an unactuated chain.
+    """
+    return _forward(chain, q, qd, u)
+
+
+def _forward(chain: Chain, q, qd, u=None, implicit_damping_dt=None) -> jnp.ndarray:
+    """``forward_dynamics``; with ``implicit_damping_dt = h`` it solves with ``M + h diag(damping)``."""
+    _check(chain, "q", q, chain.n)
+    _check(chain, "qd", qd, chain.n)
+    f = frames(chain, q, qd)
+    bias = _generalized(chain, f, qd, velocity=True, gravity=True)
+    tau = _actuation(chain, u) if u is not None else [0.0] * chain.n
+    rhs = [s.sub(t, b) for t, b in zip(tau, bias)]
+    like = q[..., 0] if jnp.ndim(q) >= jnp.ndim(qd) else qd[..., 0]
+    M = _mass_entries(chain, f)
+    if implicit_damping_dt is not None and chain.damping is not None:
+        for j in chain.damped:
+            M[j][j] = s.add(M[j][j], s.mul(implicit_damping_dt, chain.damping[j]))
+    qdd = solve_spd(M, rhs, like)
+    return _stack(qdd, like)
+
+
+def inverse_dynamics(chain: Chain, q, qd, qdd) -> jnp.ndarray:
+    """Generalized forces ``M qdd + C qd + T + D qd`` that produce ``qdd``, shape ``(..., n)``."""
+    _check(chain, "qdd", qdd, chain.n)
+    return jnp.einsum("...ij,...j->...i", mass_matrix(chain, q), qdd) + bias_forces(chain, q, qd)
+
+
+def energy(chain: Chain, q, qd) -> tuple[jnp.ndarray, jnp.ndarray]:
+    """``(kinetic, potential)`` energy [J]; potential is zero with the chain's origin at z = 0."""
+    _check(chain, "q", q, chain.n)
+    _check(chain, "qd", qd, chain.n)
+    f = frames(chain, q, qd)
+    like = q[..., 0]
+    kin = 0.0
+    pot = 0.0
+    for i, (cx, cz) in enumerate(f.com):
+        v2 = s.add(s.mul(cx.vd, cx.vd), s.mul(cz.vd, cz.vd))
+        kin = s.add(kin, s.mul(0.5 * chain.mass[i], v2))
+        w = f.angle_rate[i]
+        kin = s.add(kin, s.mul(0.5 * chain.inertia[i], s.mul(w, w)))
+        if chain.gravity is not None:
+            pot = s.add(pot, s.mul(chain.mass[i] * chain.gravity, cz.v))
+    for j in chain.armatured:
+        kin = s.add(kin, s.mul(0.5 * chain.armature[j], s.mul(qd[..., j], qd[..., j])))
+    return s.as_array(kin, like), s.as_array(pot, like)

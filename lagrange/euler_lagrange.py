@@ -1,0 +1,73 @@
+"""The Euler-Lagrange equations derived literally, for checking and for comparison.
+
+This is the textbook derivation a reader can verify line by line: dense forward kinematics,
+``L = T - V``, ``M = d2L/dqd2`` and ``C qd + T = d2L/dqd dq qd - dL/dq`` by JAX's dense
+``hessian``/``jacfwd``, and ``jnp.linalg.solve``. It shares no code with
+:mod:`lagrange.dynamics` except the :class:`~lagrange.chain.Chain` parameters, and is an order of
+magnitude slower; use it as an oracle, not in loops.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from lagrange.chain import Chain
+
+
+def _d(phi):
+    return jnp.stack([jnp.sin(phi), -jnp.cos(phi)])
+
+
+def _e(phi):
+    return jnp.stack([jnp.cos(phi), jnp.sin(phi)])
+
+
+def com_and_angles(chain: Chain, q):
+    """Centres of mass ``(n, 2)`` and absolute link angles ``(n,)`` by plain forward kinematics."""
+    p = jnp.zeros(2, q.dtype)
+    phi = jnp.zeros((), q.dtype)
+    coms, phis = [], []
+    for i, joint in enumerate(chain.joints):
+        if i > 0:
+            p = p + chain.length[i - 1] * _d(phi)
+        if joint == "revolute":
+            phi = phi + q[i]
+        else:
+            p = p + q[i] * _e(phi + chain.axes[i])
+        coms.append(p + chain.com[i] * _d(phi))
+        phis.append(phi)
+    return jnp.stack(coms), jnp.stack(phis)
+
+
+def lagrangian(chain: Chain, q, qd):
+    def kin(q):
+        return com_and_angles(chain, q)
+
+    (c, phi), (v, w) = jax.jvp(kin, (q,), (qd,))
+    T = 0.5 * jnp.sum(chain.mass * jnp.sum(v**2, axis=-1)) + 0.5 * jnp.sum(chain.inertia * w**2)
+    if chain.armature is not None:
+        T = T + 0.5 * jnp.sum(chain.armature * qd**2)
+    g = 0.0 if chain.gravity is None else chain.gravity
+    V = jnp.sum(chain.mass * g * c[:, 1])
+    return T - V
+
+
+def mass_matrix(chain: Chain, q):
+    return jax.hessian(lagrangian, argnums=2)(chain, q, jnp.zeros_like(q))
+
+
+def bias_forces(chain: Chain, q, qd):
+    dL_dqd = jax.grad(lagrangian, argnums=2)
+    mixed = jax.jacfwd(dL_dqd, argnums=1)(chain, q, qd)
+    out = mixed @ qd - jax.grad(lagrangian, argnums=1)(chain, q, qd)
+    if chain.damping is not None:
+        out = out + chain.damping * qd
+    return out
+
+
+def forward_dynamics(chain: Chain, q, qd, u=None):
+    tau = jnp.zeros_like(q)
+    if u is not None and chain.m:
+        tau = tau.at[jnp.array(chain.actuated)].add(chain.gear * u)
+    return jnp.linalg.solve(mass_matrix(chain, q), tau - bias_forces(chain, q, qd))

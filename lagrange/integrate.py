@@ -1,0 +1,265 @@
+"""Time integration of a chain under piecewise-constant controls, on diffrax.
+
+:func:`simulate` rolls a chain out over ``T`` control intervals of length ``dt``; :func:`step`
+advances one interval (for RL loops). Within an interval the control is held constant and the
+solver takes ``substeps`` fixed steps of ``dt / substeps``, or adaptive steps when ``rtol`` and
+``atol`` are given.
+
+Fixed-step explicit Runge-Kutta solvers (``RK4``, ``Euler``, ``Tsit5``, ``Dopri5``,
+``Dopri8``, any diffrax ERK) are run from their diffrax Butcher tableau, unrolled, with zero
+coefficients and unused stages dropped at trace time and differentiated by plain reverse-mode
+autodiff through the ``scan`` (the fastest choice for short, fixed-step horizons). Passing a
+diffrax ``adjoint`` (e.g. ``diffrax.RecursiveCheckpointAdjoint()``,
+``diffrax.BacksolveAdjoint()``), or asking for adaptive steps, runs each interval through
+``diffrax.diffeqsolve`` instead; both paths give the same numbers to round-off.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from lagrange.chain import Chain
+from lagrange.dynamics import _forward
+from lagrange.solvers import RK4, SemiImplicitEuler, check_solver, is_adaptive_capable
+
+
+class Trajectory(eqx.Module):
+    """A rolled-out trajectory: times ``t`` (T+1,), positions ``q`` and velocities ``qd``
+    (T+1, n), and the controls ``u`` (T, m) that were applied over each interval."""
+
+    t: jax.Array
+    q: jax.Array
+    qd: jax.Array
+    u: jax.Array
+
+
+def _check_dt(dt):
+    if isinstance(dt, jax.core.Tracer):
+        return
+    try:
+        v = float(dt)
+    except (TypeError, ValueError) as err:
+        raise TypeError(f"dt must be a positive real number of seconds, got {dt!r}") from err
+    if not (math.isfinite(v) and v > 0):
+        raise ValueError(f"dt must be a finite number > 0 seconds, got {v}")
+
+
+def _check_substeps(substeps):
+    if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
+        raise ValueError(f"substeps must be an integer >= 1, got {substeps!r}")
+
+
+def _needed_stages(tableau) -> list[bool]:
+    b = np.asarray(tableau.b_sol)
+    s = len(b)
+    need = [bool(b[i] != 0) for i in range(s)]
+    for i in reversed(range(1, s)):
+        if need[i]:
+            for j, a in enumerate(np.asarray(tableau.a_lower[i - 1])):
+                if a != 0:
+                    need[j] = True
+    return need
+
+
+def _axpy(y, h, coeffs, ks):
+    """y + h * sum_j coeffs[j] * ks[j], skipping zero coefficients (tuples of arrays)."""
+    out = list(y)
+    for c, k in zip(coeffs, ks):
+        c = float(c)
+        if c == 0.0:
+            continue
+        w = h * c
+        out = [o + w * kk for o, kk in zip(out, k)]
+    return tuple(out)
+
+
+def _erk_step(f, tableau, h, y):
+    need = _needed_stages(tableau)
+    ks = [None] * len(need)
+    for i, needed in enumerate(need):
+        if not needed:
+            continue
+        yi = y if i == 0 else _axpy(y, h, tableau.a_lower[i - 1], ks[:i])
+        ks[i] = f(yi)
+    return _axpy(y, h, tableau.b_sol, ks)
+
+
+def _fixed_substep(chain: Chain, solver, h, q, qd, u):
+    if isinstance(solver, SemiImplicitEuler):
+        qdd = _forward(chain, q, qd, u, implicit_damping_dt=h)
+        qd1 = qd + h * qdd
+        return q + h * qd1, qd1
+
+    def f(y):
+        return (y[1], _forward(chain, y[0], y[1], u))
+
+    if isinstance(solver, diffrax.Euler):
+        qdd = f((q, qd))[1]
+        return q + h * qd, qd + h * qdd
+    return _erk_step(f, solver.tableau, h, (q, qd))
+
+
+def _interval(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps):
+    """The map (q, qd, u) -> (q, qd) over one control interval."""
+    adaptive = rtol is not None or atol is not None
+    if adaptive:
+        if rtol is None or atol is None:
+            raise ValueError("adaptive stepping needs both rtol and atol (positive floats), got only one")
+        if not (rtol > 0 and atol > 0):
+            raise ValueError(f"rtol and atol must be > 0, got rtol={rtol}, atol={atol}")
+        if not is_adaptive_capable(solver):
+            raise ValueError(
+                f"{type(solver).__name__} has no embedded error estimate, so rtol/atol cannot be used; "
+                "use Tsit5(), Dopri5() or Dopri8() for adaptive steps, or drop rtol/atol"
+            )
+    if isinstance(solver, SemiImplicitEuler) and adjoint is not None:
+        raise ValueError("SemiImplicitEuler runs outside diffeqsolve; pass adjoint=None")
+    h = dt / substeps
+
+    if not adaptive and adjoint is None:
+
+        def interval(q, qd, u):
+            if substeps == 1:
+                return _fixed_substep(chain, solver, h, q, qd, u)
+
+            def body(carry, _):
+                return _fixed_substep(chain, solver, h, *carry, u), None
+
+            return jax.lax.scan(body, (q, qd), None, length=substeps)[0]
+
+        return interval
+
+    term = diffrax.ODETerm(lambda t, y, u: (y[1], _forward(chain, y[0], y[1], u)))
+    controller = (
+        diffrax.PIDController(rtol=rtol, atol=atol) if adaptive else diffrax.ConstantStepSize()
+    )
+    adj = adjoint if adjoint is not None else diffrax.RecursiveCheckpointAdjoint()
+
+    def interval(q, qd, u):
+        sol = diffrax.diffeqsolve(
+            term,
+            solver,
+            0.0,
+            dt,
+            h,
+            (q, qd),
+            args=u,
+            stepsize_controller=controller,
+            adjoint=adj,
+            saveat=diffrax.SaveAt(t1=True),
+            max_steps=max_steps if adaptive else substeps,
+        )
+        return sol.ys[0][0], sol.ys[1][0]
+
+    return interval
+
+
+def _check_state(chain, q, qd):
+    for name, x in (("q0", q), ("qd0", qd)):
+        if jnp.shape(x) != (chain.n,):
+            raise ValueError(f"{name} must have shape ({chain.n},) for this chain, got {jnp.shape(x)}")
+
+
+def simulate(
+    chain: Chain,
+    q0,
+    qd0,
+    controls,
+    dt: float,
+    solver=RK4(),
+    substeps: int = 1,
+    *,
+    steps: int | None = None,
+    adjoint=None,
+    rtol: float | None = None,
+    atol: float | None = None,
+    max_steps: int = 4096,
+    check: bool = True,
+) -> Trajectory:
+    """Roll a chain out from ``(q0, qd0)`` over ``T`` intervals of ``dt`` seconds.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`.
+        q0, qd0: initial state, shape ``(n,)``.
+        controls: an array ``(T, m)`` held constant over each interval, or a policy
+            ``controls(t, q, qd) -> u`` of shape ``(m,)`` evaluated at each interval's start
+            (then ``steps=T`` is required). ``None`` for an unactuated chain (with ``steps``).
+        dt: control interval [s], > 0.
+        solver: a solver instance from :mod:`lagrange.solvers` (default :class:`RK4`).
+        substeps: fixed solver steps per interval (the initial step when adaptive).
+        adjoint: ``None`` for direct reverse-mode through the unrolled steps, or a diffrax
+            adjoint to run every interval through ``diffrax.diffeqsolve``.
+        rtol, atol: give both for adaptive steps (embedded-error solvers only).
+        check: raise (``eqx.error_if``) if the final state is not finite.
+
+    Returns:
+        A :class:`Trajectory` with ``t``, ``q``, ``qd`` of leading length ``T + 1`` and ``u``.
+    """
+    if not isinstance(chain, Chain):
+        raise TypeError(f"chain must be a lagrange.chain.Chain, got {type(chain).__name__}")
+    check_solver(solver)
+    _check_dt(dt)
+    _check_substeps(substeps)
+    q0, qd0 = jnp.asarray(q0), jnp.asarray(qd0)
+    _check_state(chain, q0, qd0)
+    interval = _interval(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps)
+
+    if callable(controls):
+        if steps is None:
+            raise ValueError("steps (the number of intervals, an int >= 1) is required with a policy callable")
+        policy = controls
+
+        def body(carry, k):
+            q, qd = carry
+            u = jnp.asarray(policy(k * dt, q, qd))
+            if u.shape != (chain.m,):
+                raise ValueError(f"the policy must return u of shape ({chain.m},), got {u.shape}")
+            out = interval(q, qd, u)
+            return out, (out, u)
+
+        _, ((qs, qds), us) = jax.lax.scan(body, (q0, qd0), jnp.arange(steps))
+    else:
+        if controls is None:
+            if steps is None:
+                raise ValueError("controls=None needs steps (the number of intervals, an int >= 1)")
+            controls = jnp.zeros((steps, chain.m), q0.dtype)
+        us = jnp.asarray(controls)
+        if us.ndim != 2 or us.shape[1] != chain.m:
+            raise ValueError(f"controls must have shape (T, {chain.m}) for this chain, got {us.shape}")
+        if steps is not None and steps != us.shape[0]:
+            raise ValueError(f"steps={steps} disagrees with controls of length {us.shape[0]}")
+
+        def body(carry, u):
+            out = interval(*carry, u)
+            return out, out
+
+        _, (qs, qds) = jax.lax.scan(body, (q0, qd0), us)
+
+    q = jnp.concatenate([q0[None], qs])
+    qd = jnp.concatenate([qd0[None], qds])
+    if check:
+        bad = ~(jnp.all(jnp.isfinite(q[-1])) & jnp.all(jnp.isfinite(qd[-1])))
+        q = eqx.error_if(q, bad, "lagrange.simulate: the state became non-finite (NaN/Inf); "
+                         "reduce dt, raise substeps or check the chain's parameters")
+    t = jnp.arange(q.shape[0], dtype=q.dtype) * dt
+    return Trajectory(t=t, q=q, qd=qd, u=us)
+
+
+def step(chain: Chain, q, qd, u, dt: float, solver=RK4(), substeps: int = 1, *, adjoint=None,
+         rtol=None, atol=None, max_steps: int = 4096):
+    """Advance ``(q, qd)`` by one interval ``dt`` under constant control ``u``; returns ``(q, qd)``.
+
+    Accepts leading batch dimensions on ``q``, ``qd`` and ``u`` for fixed-step solvers.
+    Pure and cheap: it does not check for non-finite values (see :func:`simulate`).
+    """
+    check_solver(solver)
+    _check_dt(dt)
+    _check_substeps(substeps)
+    return _interval(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps)(q, qd, u)

@@ -1,0 +1,109 @@
+"""Forward kinematics of a planar chain, as jets (values with their q-derivatives).
+
+Each frame's origin and each centre of mass is a pair of :class:`~lagrange._jet.Jet` (x, z).
+The Jacobians, velocities and velocity-product accelerations that the dynamics need are read
+off the jets; nothing here builds a dense Jacobian.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import math
+
+import jax.numpy as jnp
+
+from lagrange import _scalar as s
+from lagrange._jet import Jet, sincos
+from lagrange.chain import Chain
+
+
+class Frames(NamedTuple):
+    """Kinematics of every link, as jets.
+
+    ``origin[i]``: (x, z) of joint i; ``com[i]``: (x, z) of link i's centre of mass;
+    ``tip``: (x, z) of the end of the last link; ``angle_rate[i]``: phi_i's time derivative
+    (``None`` when velocities were not asked for); ``revolute_before[i]``: the revolute joints
+    j <= i (the rows of phi_i's Jacobian, all ones).
+    """
+
+    origin: list
+    com: list
+    tip: tuple
+    angle_rate: list
+    revolute_before: list
+
+
+def _vec_scale(v, c):
+    return (v[0].scale(c), v[1].scale(c))
+
+
+def _vec_add(a, b):
+    return (a[0] + b[0], a[1] + b[1])
+
+
+def _split(x, n: int):
+    if x is None:
+        return [0.0] * n
+    return [x[..., i] for i in range(n)]
+
+
+def frames(chain: Chain, q, qd=None) -> Frames:
+    """Jets of every joint origin and centre of mass. ``qd=None`` drops all velocity terms."""
+    n = chain.n
+    qs = _split(q, n)
+    qds = _split(qd, n)
+    phi = Jet.const(0.0)
+    sin_phi, cos_phi = Jet.const(0.0), Jet.const(1.0)
+    p = (Jet.const(0.0), Jet.const(0.0))
+    length_prev = 0.0
+    origin, com, rates, rev = [], [], [], []
+    revolute: list[int] = []
+    rate = 0.0
+    for i, joint in enumerate(chain.joints):
+        # d(phi_{i-1}) = (sin, -cos)
+        if i > 0:
+            p = _vec_add(p, _vec_scale((sin_phi, -cos_phi), length_prev))
+        qi = Jet.coordinate(i, qs[i], qds[i])
+        if joint == "revolute":
+            phi = phi + qi
+            revolute = revolute + [i]
+            rate = s.add(rate, qds[i])
+            sin_phi, cos_phi = sincos(phi)
+        else:  # prismatic: slide along e(phi_{i-1} + axis)
+            a = chain.axes[i]
+            ca, sa = math.cos(a), math.sin(a)
+            if a == 0.0:
+                ex, ez = cos_phi, sin_phi
+            else:  # e(phi + a) = cos(a) e(phi) + sin(a) e'(phi), e' = (-sin, cos)
+                ex = cos_phi.scale(ca) - sin_phi.scale(sa)
+                ez = sin_phi.scale(ca) + cos_phi.scale(sa)
+            p = _vec_add(p, (ex * qi, ez * qi))
+        origin.append(p)
+        com.append(_vec_add(p, _vec_scale((sin_phi, -cos_phi), chain.com[i])))
+        rates.append(rate if qd is not None else None)
+        rev.append(tuple(revolute))
+        length_prev = chain.length[i]
+    tip = _vec_add(p, _vec_scale((sin_phi, -cos_phi), length_prev))
+    return Frames(origin, com, tip, rates, rev)
+
+
+def positions(chain: Chain, q) -> jnp.ndarray:
+    """Joint origins and the tip, shape ``(n + 1, 2)`` as (x, z) rows, for plotting."""
+    f = frames(chain, q)
+    pts = f.origin + [f.tip]
+    like = q[..., 0]
+    return jnp.stack(
+        [jnp.stack([s.as_array(pt[0].v, like), s.as_array(pt[1].v, like)], axis=-1) for pt in pts],
+        axis=-2,
+    )
+
+
+def com_positions(chain: Chain, q) -> jnp.ndarray:
+    """Centres of mass, shape ``(n, 2)`` as (x, z) rows."""
+    f = frames(chain, q)
+    like = q[..., 0]
+    return jnp.stack(
+        [jnp.stack([s.as_array(c[0].v, like), s.as_array(c[1].v, like)], axis=-1) for c in f.com],
+        axis=-2,
+    )

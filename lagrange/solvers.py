@@ -1,0 +1,82 @@
+"""Integrators: diffrax solvers, plus the semi-implicit Euler that MuJoCo and Brax use.
+
+- :class:`RK4` is the classic fourth-order Runge-Kutta method written as a diffrax Butcher
+  tableau (a :class:`diffrax.AbstractERK`), so it runs inside ``diffrax.diffeqsolve`` too.
+- ``Euler``, ``Tsit5``, ``Dopri5`` and ``Dopri8`` are diffrax's own solvers, re-exported.
+- :class:`SemiImplicitEuler` is symplectic Euler for second-order systems,
+  ``qd' = qd + h qdd(q, qd, u)``, ``q' = q + h qd'``, with joint damping treated implicitly
+  (``(M + h diag(damping)) qdd = ...``) exactly as MuJoCo's and Brax's ``Euler`` integrators.
+
+Fixed-step explicit Runge-Kutta methods are executed by :mod:`lagrange.integrate` straight
+from their tableau, unrolled, with zero coefficients and unused stages dropped at trace time.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import diffrax
+import equinox as eqx
+import numpy as np
+from diffrax import Dopri5, Dopri8, Euler, Tsit5
+
+_rk4_tableau = diffrax.ButcherTableau(
+    c=np.array([0.5, 0.5, 1.0]),
+    b_sol=np.array([1 / 6, 1 / 3, 1 / 3, 1 / 6]),
+    b_error=np.zeros(4),
+    a_lower=(np.array([0.5]), np.array([0.0, 0.5]), np.array([0.0, 0.0, 1.0])),
+)
+
+
+class RK4(diffrax.AbstractERK):
+    """Classic fourth-order Runge-Kutta (no embedded error estimate: fixed steps only)."""
+
+    tableau: ClassVar[diffrax.ButcherTableau] = _rk4_tableau
+    interpolation_cls: ClassVar = diffrax.ThirdOrderHermitePolynomialInterpolation.from_k
+
+    def order(self, terms):
+        return 4
+
+
+class SemiImplicitEuler(eqx.Module):
+    """Semi-implicit (symplectic) Euler for ``M qdd + ... = B u``; first order, fixed steps only.
+
+    ``qd' = qd + h qdd``, ``q' = q + h qd'``, where joint damping enters the velocity update
+    implicitly: ``(M + h diag(damping)) qdd = B u - C qd - T - damping qd``. This is MuJoCo's
+    ``integrator="Euler"`` and Brax's generalized pipeline, step for step.
+    """
+
+    def order(self, terms=None):
+        return 1
+
+
+SOLVERS = (RK4, Euler, SemiImplicitEuler, Tsit5, Dopri5, Dopri8)
+"""The solvers this library has been checked with (any explicit diffrax ERK also works)."""
+
+
+def order(solver) -> int:
+    """Classical order of accuracy of a solver."""
+    return int(solver.order(None))
+
+
+def is_adaptive_capable(solver) -> bool:
+    """Whether the solver has an embedded error estimate (so rtol/atol can be used)."""
+    if not isinstance(solver, diffrax.AbstractERK):
+        return False
+    return bool(np.any(np.asarray(solver.tableau.b_error) != 0))
+
+
+def check_solver(solver) -> None:
+    if isinstance(solver, (SemiImplicitEuler, Euler, diffrax.AbstractERK)):
+        return
+    if isinstance(solver, type):
+        raise TypeError(
+            f"solver must be a solver instance, got the class {solver.__name__}; write {solver.__name__}()"
+        )
+    names = ", ".join(f"lagrange.{c.__name__}()" for c in SOLVERS)
+    raise TypeError(
+        f"solver must be one of {names} or another explicit diffrax Runge-Kutta solver, got {solver!r}"
+    )
+
+
+__all__ = ["RK4", "Euler", "SemiImplicitEuler", "Tsit5", "Dopri5", "Dopri8", "SOLVERS"]
