@@ -94,6 +94,22 @@ class Link(eqx.Module):
     armature: object = 0.0
     gear: object = None
 
+    def __init__(self, joint, mass, length=0.0, com=None, inertia=None, axis=0.0, damping=0.0, armature=0.0, gear=None):
+        if isinstance(joint, np.str_):
+            joint = str(joint)
+        if not isinstance(joint, str) or joint not in JOINTS:
+            raise ValueError(f"Link.joint must be one of {JOINTS}, got {joint!r}")
+        _check_scalar("axis", axis)
+        self.joint = joint
+        self.mass = mass
+        self.length = length
+        self.com = com
+        self.inertia = inertia
+        self.axis = float(axis)
+        self.damping = damping
+        self.armature = armature
+        self.gear = gear
+
     def __check_init__(self):
         if not isinstance(self.joint, str) or self.joint not in JOINTS:
             raise ValueError(f"Link.joint must be one of {JOINTS}, got {self.joint!r}")

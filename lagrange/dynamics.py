@@ -23,6 +23,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from lagrange import _scalar as s
+from lagrange import _unitvec
 from lagrange._linalg import solve_spd, to_array
 from lagrange.chain import Chain
 from lagrange.kinematics import frames
@@ -68,11 +69,29 @@ def _generalized(chain: Chain, f, qd, *, velocity: bool, gravity: bool) -> list:
         fz = s.mul(m, s.add(cz.a if velocity else 0.0, g))
         for j in set(cx.g) | set(cz.g):
             out[j] = s.add(out[j], s.add(s.mul(cx.g.get(j, 0.0), fx), s.mul(cz.g.get(j, 0.0), fz)))
-    if velocity and chain.damping is not None:
-        qds = [qd[..., j] for j in range(n)]
-        for j in chain.damped:
-            out[j] = s.add(out[j], s.mul(chain.damping[j], qds[j]))
     return out
+
+
+UNITVEC_MAX = 6
+"""Chains of up to this many links use the relative-angle formulation of :mod:`lagrange._unitvec`
+(fewest operations for short chains); longer ones use the jets of :mod:`lagrange._jet`
+(O(n) transcendentals)."""
+
+
+def _terms(chain: Chain, q, qd, *, mass: bool, velocity: bool, gravity: bool):
+    """(lower triangle of M or None, generalized velocity-product + gravity forces or None)."""
+    if chain.n <= UNITVEC_MAX:
+        geom = _unitvec.Geometry(chain, q, qd if velocity else None)
+        M = _unitvec.mass_entries(chain, geom) if mass else None
+        f = _unitvec.generalized_forces(chain, geom, velocity=velocity, gravity=gravity) if (velocity or gravity) else None
+    else:
+        fr = frames(chain, q, qd if velocity else None)
+        M = _mass_entries(chain, fr) if mass else None
+        f = _generalized(chain, fr, None, velocity=velocity, gravity=gravity) if (velocity or gravity) else None
+    if f is not None and velocity and chain.damping is not None:
+        for j in chain.damped:
+            f[j] = s.add(f[j], s.mul(chain.damping[j], qd[..., j]))
+    return M, f
 
 
 def _stack(xs, like):
@@ -82,23 +101,23 @@ def _stack(xs, like):
 def mass_matrix(chain: Chain, q) -> jnp.ndarray:
     """Mass matrix ``M(q)``, shape ``(..., n, n)``, symmetric positive definite."""
     _check(chain, "q", q, chain.n)
-    f = frames(chain, q)
-    return to_array(_mass_entries(chain, f), q[..., 0], symmetric=True)
+    M, _ = _terms(chain, q, None, mass=True, velocity=False, gravity=False)
+    return to_array(M, q[..., 0], symmetric=True)
 
 
 def bias_forces(chain: Chain, q, qd) -> jnp.ndarray:
     """``C(q, qd) qd + T(q) + D qd``, shape ``(..., n)``: what the joints must supply at ``qdd = 0``."""
     _check(chain, "q", q, chain.n)
     _check(chain, "qd", qd, chain.n)
-    f = frames(chain, q, qd)
-    return _stack(_generalized(chain, f, qd, velocity=True, gravity=True), q[..., 0])
+    _, f = _terms(chain, q, qd, mass=False, velocity=True, gravity=True)
+    return _stack(f, q[..., 0])
 
 
 def gravity_forces(chain: Chain, q) -> jnp.ndarray:
     """``T(q) = dV/dq``, shape ``(..., n)``."""
     _check(chain, "q", q, chain.n)
-    f = frames(chain, q)
-    return _stack(_generalized(chain, f, None, velocity=False, gravity=True), q[..., 0])
+    _, f = _terms(chain, q, None, mass=False, velocity=False, gravity=True)
+    return _stack(f, q[..., 0])
 
 
 def actuation_matrix(chain: Chain) -> jnp.ndarray:
@@ -130,12 +149,10 @@ def _forward(chain: Chain, q, qd, u=None, implicit_damping_dt=None) -> jnp.ndarr
     """``forward_dynamics``; with ``implicit_damping_dt = h`` it solves with ``M + h diag(damping)``."""
     _check(chain, "q", q, chain.n)
     _check(chain, "qd", qd, chain.n)
-    f = frames(chain, q, qd)
-    bias = _generalized(chain, f, qd, velocity=True, gravity=True)
+    M, bias = _terms(chain, q, qd, mass=True, velocity=True, gravity=True)
     tau = _actuation(chain, u) if u is not None else [0.0] * chain.n
     rhs = [s.sub(t, b) for t, b in zip(tau, bias)]
     like = q[..., 0] if jnp.ndim(q) >= jnp.ndim(qd) else qd[..., 0]
-    M = _mass_entries(chain, f)
     if implicit_damping_dt is not None and chain.damping is not None:
         for j in chain.damped:
             M[j][j] = s.add(M[j][j], s.mul(implicit_damping_dt, chain.damping[j]))
