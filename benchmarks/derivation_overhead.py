@@ -1,0 +1,190 @@
+"""What the autodiff derivation costs: lagrange against hand-written closed-form equations.
+
+Acrobot, cartpole and double cartpole; classic RK4, 500 control steps of 0.01 s (one RK4 step
+each), float32, controls (500, 1) from a fixed seed. For each system, batch (1 and 1024, via
+``vmap``) and mode (forward: the whole trajectory; gradient: of a loss on the final state with
+respect to all controls), it times, interleaved in one run:
+
+- ``lagrange``: ``lagrange.simulate(chain, ..., solver=RK4())`` with its defaults
+  (non-finite check on, per-interval ``jax.checkpoint`` on),
+- ``closed form``: ``benchmarks/closed_form.py``, hand-written equations and RK4 in ``lax.scan``,
+- ``closed form + remat``: the same with ``jax.checkpoint`` around each interval, as a careful
+  person would add once they measured it,
+- ``naive autodiff``: Hessians of the Lagrangian and ``jnp.linalg.solve``
+  (:mod:`lagrange.euler_lagrange`) in the same RK4 loop, the derivation this library replaces.
+
+Reported: median wall time over interleaved repeats, compile time, and the ratios
+``lagrange / closed form`` and ``lagrange / (closed form + remat)``. Shared, noisy machines make
+absolute times drift; the ratios from one run are what to compare.
+
+    python benchmarks/derivation_overhead.py [--repeats 7] [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+import lagrange as lg  # noqa: E402
+from benchmarks import closed_form as cf  # noqa: E402
+from lagrange import euler_lagrange as el  # noqa: E402
+
+STEPS, DT = 500, 0.01
+SYSTEMS = {
+    "acrobot": (lg.systems.acrobot, cf.acrobot, [0.3, 0.2]),
+    "cartpole": (lg.systems.cartpole, cf.cartpole, [0.1, 0.3]),
+    "double_cartpole": (lg.systems.double_cartpole, cf.double_cartpole, [0.1, 0.3, -0.2]),
+}
+
+
+def _variants(chain, closed):
+    params = closed.Params()
+
+    def lagrange_roll(q0, qd0, us):
+        tr = lg.simulate(chain, q0, qd0, us, DT, solver=lg.RK4())
+        return tr.q, tr.qd
+
+    def cf_roll(q0, qd0, us):
+        return cf.rollout(closed.forward_dynamics, params, q0, qd0, us, DT)
+
+    def cf_remat_roll(q0, qd0, us):
+        step = jax.checkpoint(lambda q, qd, u: cf.rk4_step(closed.forward_dynamics, params, q, qd, u, DT))
+
+        def body(c, u):
+            out = step(*c, u)
+            return out, out
+
+        _, (qs, qds) = jax.lax.scan(body, (q0, qd0), us)
+        return jnp.concatenate([q0[None], qs]), jnp.concatenate([qd0[None], qds])
+
+    def naive_roll(q0, qd0, us):
+        return cf.rollout(lambda p, q, qd, u: el.forward_dynamics(chain, q, qd, u), None, q0, qd0, us, DT)
+
+    return {
+        "lagrange": lagrange_roll,
+        "closed form": cf_roll,
+        "closed form + remat": cf_remat_roll,
+        "naive autodiff": naive_roll,
+    }
+
+
+def _build(roll, mode):
+    if mode == "forward":
+        f = roll
+    else:
+
+        def loss(q0, qd0, us):
+            q, qd = roll(q0, qd0, us)
+            return jnp.sum(q[-1] ** 2) + jnp.sum(qd[-1] ** 2)
+
+        f = jax.grad(loss, argnums=2)
+    return jax.jit(jax.vmap(f, in_axes=(0, 0, 1)))
+
+
+def _time(f, args, calls: int = 1):
+    """Seconds per call, averaged over ``calls`` back-to-back calls."""
+    t0 = time.perf_counter()
+    for _ in range(calls):
+        jax.block_until_ready(f(*args))
+    return (time.perf_counter() - t0) / calls
+
+
+def run(repeats: int, batches, systems):
+    rows = []
+    for name in systems:
+        make_chain, closed, q_init = SYSTEMS[name]
+        chain = make_chain()
+        variants = _variants(chain, closed)
+        n = chain.n
+        for batch in batches:
+            rng = np.random.default_rng(0)
+            q0 = jnp.asarray(np.asarray(q_init)[None] + 0.01 * rng.standard_normal((batch, n)), jnp.float32)
+            qd0 = jnp.zeros((batch, n), jnp.float32)
+            us = jnp.asarray(0.3 * rng.standard_normal((STEPS, batch, 1)), jnp.float32)
+            for mode in ("forward", "gradient"):
+                fns, compile_s, times = {}, {}, {}
+                for v, roll in variants.items():
+                    fns[v] = _build(roll, mode)
+                    compile_s[v] = _time(fns[v], (q0, qd0, us))  # compile + first run
+                    times[v] = []
+                # calls per measurement: enough for ~20 ms, so microsecond runs are not timer noise
+                calls = {v: max(1, int(0.02 / max(_time(fns[v], (q0, qd0, us)), 1e-6))) for v in fns}
+                reference = np.asarray(fns["closed form"](q0, qd0, us)[0] if mode == "forward" else fns["closed form"](q0, qd0, us))
+                mine = np.asarray(fns["lagrange"](q0, qd0, us)[0] if mode == "forward" else fns["lagrange"](q0, qd0, us))
+                agree = float(np.max(np.abs(mine - reference)) / max(1.0, float(np.max(np.abs(reference)))))
+                for _ in range(repeats):
+                    for v in variants:
+                        if v == "naive autodiff" and len(times[v]) >= max(3, repeats // 3):
+                            continue
+                        times[v].append(_time(fns[v], (q0, qd0, us), calls[v]))
+                med = {v: float(np.median(t)) for v, t in times.items()}
+                row = {
+                    "system": name,
+                    "batch": batch,
+                    "mode": mode,
+                    "ms": {v: 1e3 * t for v, t in med.items()},
+                    "compile_s": compile_s,
+                    "ratio_vs_closed_form": med["lagrange"] / med["closed form"],
+                    "ratio_vs_closed_form_remat": med["lagrange"] / med["closed form + remat"],
+                    "naive_vs_closed_form": med["naive autodiff"] / med["closed form"],
+                    "max_rel_diff_vs_closed_form": agree,
+                }
+                rows.append(row)
+                print(
+                    f"{name:16s} B={batch:<5d} {mode:8s} lagrange {row['ms']['lagrange']:9.3f} ms | "
+                    f"closed {row['ms']['closed form']:9.3f} | closed+remat {row['ms']['closed form + remat']:9.3f} | "
+                    f"naive {row['ms']['naive autodiff']:9.3f} || ratio {row['ratio_vs_closed_form']:.2f} "
+                    f"(vs remat {row['ratio_vs_closed_form_remat']:.2f}, naive {row['naive_vs_closed_form']:.1f}) "
+                    f"compile {compile_s['lagrange']:.2f}s vs {compile_s['closed form']:.2f}s",
+                    flush=True,
+                )
+    return rows
+
+
+def markdown(rows) -> str:
+    out = [
+        "| system | batch | mode | lagrange ms | closed form ms | closed form + remat ms | naive autodiff ms "
+        "| lagrange / closed | lagrange / (closed + remat) | naive / closed | compile lagrange / closed s |",
+        "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for r in rows:
+        ms, c = r["ms"], r["compile_s"]
+        out.append(
+            f"| {r['system']} | {r['batch']} | {r['mode']} | {ms['lagrange']:.3f} | {ms['closed form']:.3f} | "
+            f"{ms['closed form + remat']:.3f} | {ms['naive autodiff']:.3f} | **{r['ratio_vs_closed_form']:.2f}** | "
+            f"{r['ratio_vs_closed_form_remat']:.2f} | {r['naive_vs_closed_form']:.1f} | "
+            f"{c['lagrange']:.2f} / {c['closed form']:.2f} |"
+        )
+    return "\n".join(out)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--repeats", type=int, default=15)
+    ap.add_argument("--quick", action="store_true", help="acrobot only, 3 repeats")
+    ap.add_argument("--out", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "results"))
+    args = ap.parse_args()
+    systems = ["acrobot"] if args.quick else list(SYSTEMS)
+    repeats = 3 if args.quick else args.repeats
+    rows = run(repeats, (1, 1024), systems)
+    table = markdown(rows)
+    print()
+    print(table)
+    os.makedirs(args.out, exist_ok=True)
+    with open(os.path.join(args.out, "derivation_overhead.json"), "w") as f:
+        json.dump({"rows": rows, "jax": jax.__version__, "backend": jax.default_backend(), "cpus": os.cpu_count()}, f, indent=1)
+    with open(os.path.join(args.out, "derivation_overhead.md"), "w") as f:
+        f.write(table + "\n")
+
+
+if __name__ == "__main__":
+    main()

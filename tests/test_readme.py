@@ -1,0 +1,19 @@
+"""The README's two commands are the ones CI and users run."""
+
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+TEST_COMMAND = 'python3 -m venv .venv && . .venv/bin/activate && pip install -e ".[test]" && python -m pytest -n 2 tests'
+RUN_COMMAND = "python3 -m venv .venv && . .venv/bin/activate && pip install -e . && python examples/acrobot_swingup.py"
+
+
+def test_ci_runs_exactly_the_readme_test_command():
+    readme = (ROOT / "README.md").read_text()
+    ci = (ROOT / ".ci" / "run").read_text()
+    assert TEST_COMMAND in readme
+    assert ci.strip().splitlines()[-1] == TEST_COMMAND
+
+
+def test_readme_shows_the_main_job():
+    assert RUN_COMMAND in (ROOT / "README.md").read_text()
+    assert (ROOT / "examples" / "acrobot_swingup.py").exists()
