@@ -23,6 +23,10 @@ def solve_spd(M, b, like):
     scalars. Returns a list of scalars.
     """
     n = len(b)
+    if n == 1:
+        return [s.div(b[0], M[0][0])]
+    if n in (2, 3):
+        return _solve_adjugate(M, b)
     if n > UNROLL_MAX:
         A = to_array(M, like, symmetric=True)
         rhs = jnp.stack([s.as_array(x, like) for x in b], axis=-1)
@@ -52,6 +56,33 @@ def solve_spd(M, b, like):
         for k in range(i + 1, n):
             x[i] = s.sub(x[i], s.mul(L[k][i], x[k]))
     return x
+
+
+def _solve_adjugate(M, b):
+    """Cramer's rule for symmetric 2x2 and 3x3 systems: one division, as written by hand."""
+    if len(b) == 2:
+        a, c, d = M[0][0], M[1][0], M[1][1]
+        inv_det = s.div(1.0, s.sub(s.mul(a, d), s.mul(c, c)))
+        return [
+            s.mul(s.sub(s.mul(d, b[0]), s.mul(c, b[1])), inv_det),
+            s.mul(s.sub(s.mul(a, b[1]), s.mul(c, b[0])), inv_det),
+        ]
+    a, bb, c = M[0][0], M[1][0], M[2][0]
+    d, e, f = M[1][1], M[2][1], M[2][2]
+    # cofactors of the symmetric matrix [[a, bb, c], [bb, d, e], [c, e, f]]
+    A = s.sub(s.mul(d, f), s.mul(e, e))
+    B = s.sub(s.mul(c, e), s.mul(bb, f))
+    C = s.sub(s.mul(bb, e), s.mul(c, d))
+    D = s.sub(s.mul(a, f), s.mul(c, c))
+    E = s.sub(s.mul(bb, c), s.mul(a, e))
+    F = s.sub(s.mul(a, d), s.mul(bb, bb))
+    inv_det = s.div(1.0, s.total([s.mul(a, A), s.mul(bb, B), s.mul(c, C)]))
+    r0, r1, r2 = b
+    return [
+        s.mul(s.total([s.mul(A, r0), s.mul(B, r1), s.mul(C, r2)]), inv_det),
+        s.mul(s.total([s.mul(B, r0), s.mul(D, r1), s.mul(E, r2)]), inv_det),
+        s.mul(s.total([s.mul(C, r0), s.mul(E, r1), s.mul(F, r2)]), inv_det),
+    ]
 
 
 def _batched_cho(factor, rhs):

@@ -24,10 +24,39 @@ from lagrange.chain import Chain
 BASE = -1
 
 
-class Geometry:
-    """Trace-time description of a chain's kinematics plus cached trigonometry of ``q``."""
+class _Symbol:
+    """A placeholder run-time value for the structure-only dry run of :func:`plan`."""
 
-    def __init__(self, chain: Chain, q, qd):
+    def _same(self, *_):
+        return self
+
+    __add__ = __radd__ = __sub__ = __rsub__ = __mul__ = __rmul__ = _same
+    __truediv__ = __rtruediv__ = __neg__ = __getitem__ = _same
+
+
+SYMBOL = _Symbol()
+
+
+class _StructureOnly:
+    """A chain's static structure with every parameter replaced by :data:`SYMBOL`."""
+
+    def __init__(self, chain: Chain):
+        self.joints, self.axes, self.n = chain.joints, chain.axes, chain.n
+        self.armatured, self.damped = chain.armatured, chain.damped
+        self.mass = self.length = self.com = self.inertia = SYMBOL
+        self.armature = None if chain.armature is None else SYMBOL
+        self.gravity = None if chain.gravity is None else SYMBOL
+
+
+class Geometry:
+    """Trace-time description of a chain's kinematics plus cached trigonometry of ``q``.
+
+    ``absolute`` names the link angles whose absolute sin/cos the computation needs anyway
+    (from :func:`plan`); relative-angle trig between two of them is then formed by products
+    (``cos(a - b) = cos a cos b + sin a sin b``) instead of two more transcendentals.
+    """
+
+    def __init__(self, chain: Chain, q, qd, absolute=frozenset()):
         import math
 
         import jax.numpy as jnp
@@ -35,8 +64,14 @@ class Geometry:
         self._jnp = jnp
         n = chain.n
         self.n = n
-        self.q = [q[..., i] for i in range(n)]
-        self.qd = None if qd is None else [qd[..., i] for i in range(n)]
+        self.absolute = absolute
+        self.requested: set = set()
+        if q is SYMBOL:
+            self.q = [SYMBOL] * n
+            self.qd = None if qd is None else [SYMBOL] * n
+        else:
+            self.q = [q[..., i] for i in range(n)]
+            self.qd = None if qd is None else [qd[..., i] for i in range(n)]
         # angle index of each link: last revolute joint <= i, or BASE
         ang, revs, a = [], {BASE: ()}, BASE
         for i, joint in enumerate(chain.joints):
@@ -66,42 +101,70 @@ class Geometry:
     def _angle_sum(self, joints):
         return s.total(self.q[j] for j in joints)
 
-    def trig_abs(self, a):
-        """(sin phi_a, cos phi_a)."""
+    def _sincos(self, x):
+        """(sin x, cos x), each traced only when first used."""
+        if x is SYMBOL:
+            return SYMBOL, SYMBOL
+        return _Lazy(self._jnp.sin, x), _Lazy(self._jnp.cos, x)
+
+    def _abs(self, a):
         if a == BASE:
             return 0.0, 1.0
         key = ("abs", a)
         if key not in self._trig:
-            x = self._angle_sum(self.revs[a])
-            self._trig[key] = (self._jnp.sin(x), self._jnp.cos(x))
+            self._trig[key] = self._sincos(self._angle_sum(self.revs[a]))
         return self._trig[key]
 
-    def trig_rel(self, a, b):
-        """(sin(phi_a - phi_b), cos(phi_a - phi_b))."""
+    def sin_abs(self, a):
+        self.requested.add(("sin", a))
+        return _force(self._abs(a)[0])
+
+    def cos_abs(self, a):
+        self.requested.add(("cos", a))
+        return _force(self._abs(a)[1])
+
+    def _have_abs(self, a):
+        return ("sin", a) in self.absolute and ("cos", a) in self.absolute
+
+    def _rel(self, hi, lo, which: int):
+        """sin (which=0) or cos (which=1) of phi_hi - phi_lo for hi > lo > BASE."""
+        key = ("rel", hi, lo)
+        if key not in self._trig:
+            if self._have_abs(hi) and self._have_abs(lo):
+                (sh, ch), (sl, cl) = [tuple(map(_force, self._abs(a))) for a in (hi, lo)]
+                self._trig[key] = (s.sub(s.mul(sh, cl), s.mul(ch, sl)), s.add(s.mul(ch, cl), s.mul(sh, sl)))
+            else:
+                self._trig[key] = self._sincos(self._angle_sum([j for j in self.revs[hi] if j > lo]))
+        return _force(self._trig[key][which])
+
+    def rel_sin(self, a, b):
+        """sin(phi_a - phi_b)."""
         if a == b:
-            return 0.0, 1.0
-        hi, lo, sign = (a, b, 1.0) if a > b else (b, a, -1.0)
-        if lo == BASE:
-            sn, cs = self.trig_abs(hi)
-        else:
-            key = ("rel", hi, lo)
-            if key not in self._trig:
-                x = self._angle_sum([j for j in self.revs[hi] if j > lo])
-                self._trig[key] = (self._jnp.sin(x), self._jnp.cos(x))
-            sn, cs = self._trig[key]
-        return s.mul(sign, sn), cs
+            return 0.0
+        if b == BASE:
+            return self.sin_abs(a)
+        if a == BASE:
+            return s.neg(self.sin_abs(b))
+        return self._rel(a, b, 0) if a > b else s.neg(self._rel(b, a, 0))
+
+    def rel_cos(self, a, b):
+        """cos(phi_a - phi_b)."""
+        if a == b:
+            return 1.0
+        if BASE in (a, b):
+            return self.cos_abs(a if b == BASE else b)
+        return self._rel(max(a, b), min(a, b), 1)
 
     def unit_dot(self, k1, a1, k2, a2):
         if a1 == a2:
             return 1.0 if k1 == k2 else 0.0
-        sn, cs = self.trig_rel(a1, a2)
         if k1 == k2:
-            return cs
+            return self.rel_cos(a1, a2)
+        sn = self.rel_sin(a1, a2)
         return sn if k1 == "d" else s.neg(sn)
 
     def unit_z(self, kind, a):
-        sn, cs = self.trig_abs(a)
-        return s.neg(cs) if kind == "d" else sn
+        return s.neg(self.cos_abs(a)) if kind == "d" else self.sin_abs(a)
 
     # -- derivatives ----------------------------------------------------------------------
     def _coef(self, c, qk):
@@ -150,6 +213,32 @@ class Geometry:
     def z(self, x: dict, scale=1.0):
         """scale * (x . e_z)."""
         return s.total(s.mul(s.mul(scale, c), self.unit_z(k, a)) for (k, a), c in x.items())
+
+
+class _Lazy:
+    """``fn(x)``, traced on first use and then reused."""
+
+    def __init__(self, fn, x):
+        self.fn, self.x, self.value = fn, x, None
+
+
+def _force(v):
+    if isinstance(v, _Lazy):
+        if v.value is None:
+            v.value = v.fn(v.x)
+        return v.value
+    return v
+
+
+def plan(chain: Chain, *, mass: bool, velocity: bool, gravity: bool) -> frozenset:
+    """The ("sin"|"cos", angle) values the requested terms need anyway, by a dry run on structure."""
+    proxy = _StructureOnly(chain)
+    geom = Geometry(proxy, SYMBOL, SYMBOL if velocity else None)
+    if mass:
+        mass_entries(proxy, geom)
+    if velocity or gravity:
+        generalized_forces(proxy, geom, velocity=velocity, gravity=gravity)
+    return frozenset(geom.requested)
 
 
 def _acc(d: dict, key, value):

@@ -81,7 +81,8 @@ UNITVEC_MAX = 6
 def _terms(chain: Chain, q, qd, *, mass: bool, velocity: bool, gravity: bool):
     """(lower triangle of M or None, generalized velocity-product + gravity forces or None)."""
     if chain.n <= UNITVEC_MAX:
-        geom = _unitvec.Geometry(chain, q, qd if velocity else None)
+        absolute = _unitvec.plan(chain, mass=mass, velocity=velocity, gravity=gravity)
+        geom = _unitvec.Geometry(chain, q, qd if velocity else None, absolute)
         M = _unitvec.mass_entries(chain, geom) if mass else None
         f = _unitvec.generalized_forces(chain, geom, velocity=velocity, gravity=gravity) if (velocity or gravity) else None
     else:

@@ -62,7 +62,8 @@ from lagrange.chain import Chain
 from lagrange.integrate import step as _step
 from lagrange.solvers import RK4
 
-__all__ = ["TaskState", "Task", "acrobot", "cartpole", "double_cartpole", "make_task", "TASKS", "balanced", "wrap"]
+__all__ = ["TaskState", "Task", "acrobot", "cartpole", "double_cartpole", "make_task", "TASKS", "balanced", "wrap",
+           "chain_swingup"]
 
 
 def wrap(angle):
@@ -92,6 +93,7 @@ class Task(eqx.Module):
     substeps: int = eqx.field(static=True, default=1)
     noise: float = eqx.field(static=True, default=0.01)
     solver: object = eqx.field(static=True, default=RK4())
+    upright: bool = eqx.field(static=True, default=False)
 
     @property
     def cart(self) -> bool:
@@ -115,11 +117,13 @@ class Task(eqx.Module):
 
     # -- state ------------------------------------------------------------------------------
     def reset(self, key) -> TaskState:
-        """Hanging down, with uniform noise in ``[-noise, noise]`` on every ``q`` and ``qd``."""
+        """Hanging down (upright if ``upright``), with uniform noise in ``[-noise, noise]`` on every ``q`` and ``qd``."""
         n = self.chain.n
         dtype = jnp.result_type(self.chain.mass)
         kq, kv = jax.random.split(key)
         q = jax.random.uniform(kq, (n,), dtype, -self.noise, self.noise)
+        if self.upright:  # start balanced instead of hanging (for balance-only variants)
+            q = q.at[1 if self.cart else 0].add(jnp.pi)
         qd = jax.random.uniform(kv, (n,), dtype, -self.noise, self.noise)
         return TaskState(q, qd)
 
@@ -181,13 +185,17 @@ def double_cartpole(**chain_kwargs) -> Task:
     return Task(systems.double_cartpole(**chain_kwargs), "double_cartpole", dt=0.01)
 
 
-def chain_swingup(chain: Chain, *, dt: float = 0.01, horizon: int = 500, substeps: int = 1) -> Task:
-    """Swing-up of any fixed-base chain of revolute links, with the acrobot's observation and reward."""
+def chain_swingup(chain: Chain, *, dt: float = 0.01, horizon: int = 500, substeps: int = 1, noise: float = 0.01,
+                  upright: bool = False) -> Task:
+    """Swing-up of any fixed-base chain of revolute links, with the acrobot's observation and reward
+    (``upright=True``: start balanced, a balance-only task)."""
     if any(j != "revolute" for j in chain.joints):
         raise ValueError(f"chain_swingup needs revolute joints only, got joints={chain.joints}")
     if chain.m < 1:
         raise ValueError("chain_swingup needs an actuated chain (some link with a gear), got chain.m=0")
-    return Task(chain, "chain", dt=dt, horizon=horizon, substeps=substeps)
+    if not noise >= 0:
+        raise ValueError(f"chain_swingup noise must be >= 0, got {noise!r}")
+    return Task(chain, "chain", dt=dt, horizon=horizon, substeps=substeps, noise=noise, upright=upright)
 
 
 TASKS = {"acrobot": acrobot, "cartpole": cartpole, "double_cartpole": double_cartpole}

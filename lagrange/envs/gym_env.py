@@ -1,0 +1,111 @@
+"""A task of :mod:`lagrange.tasks` as a Gymnasium environment (NumPy in and out).
+
+Importing this module imports Gymnasium and Matplotlib (Gymnasium is a test dependency of this
+project, not a runtime one).
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import jax
+import jax.numpy as jnp
+import numpy as np
+from gymnasium import spaces
+
+from lagrange.kinematics import positions
+from lagrange.tasks import TaskState
+
+__all__ = ["GymEnv"]
+
+
+class GymEnv(gym.Env):
+    """``task`` behind the ``gymnasium.Env`` interface, one environment, NumPy in and out.
+
+    - ``observation_space``: ``Box(-inf, inf, (task.observation_size,), float32)``;
+      ``action_space``: ``Box(-1, 1, (task.action_size,), float32)`` (the task clips and scales by the gear).
+    - ``reset(seed=..., options=None) -> (obs, {})``: the task's random start, drawn from a JAX key taken
+      from the environment's ``np_random`` (so a seed reproduces the episode).
+    - ``step(action) -> (obs, reward, terminated, truncated, info)``: ``terminated`` is always False (the
+      tasks never end early); ``truncated`` becomes True after ``task.horizon`` steps. ``info`` holds the
+      coordinates ``q`` and velocities ``qd`` (float64 NumPy arrays).
+    - ``render()`` (``render_mode="rgb_array"``): an RGB frame (H, W, 3) uint8 of the chain drawn from
+      :func:`lagrange.positions` with Matplotlib's Agg backend.
+
+    The simulation runs in the dtype of the chain's parameters; observations are cast to float32.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
+
+    def __init__(self, task, *, render_mode: str | None = None, frame_size: tuple[int, int] = (320, 240)):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"GymEnv render_mode must be None or one of {self.metadata['render_modes']}, "
+                             f"got {render_mode!r}")
+        if (len(frame_size) != 2 or any(isinstance(v, bool) or not isinstance(v, int) or v < 16
+                                         for v in frame_size)):
+            raise ValueError(f"GymEnv frame_size must be (width, height) integers >= 16, got {frame_size!r}")
+        self.task = task
+        self.render_mode = render_mode
+        self.frame_size = tuple(frame_size)
+        self.metadata = {**self.metadata, "render_fps": max(1, int(round(1.0 / task.dt)))}
+        self.observation_space = spaces.Box(-np.inf, np.inf, (task.observation_size,), np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (task.action_size,), np.float32)
+        self._dtype = jnp.result_type(task.chain.mass)
+
+        def _reset(key):
+            s = task.reset(key)
+            return s, task.observe(s)
+
+        def _step(s, a):
+            s2 = task.step(s, a)
+            return s2, task.observe(s2), task.reward(s, a, s2)
+
+        self._reset_fn = jax.jit(_reset)
+        self._step_fn = jax.jit(_step)
+        self._positions = jax.jit(lambda q: positions(task.chain, q))
+        self._state: TaskState | None = None
+        self._t = 0
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        key = jax.random.PRNGKey(int(self.np_random.integers(0, 2**31 - 1)))
+        self._state, obs = self._reset_fn(key)
+        self._t = 0
+        return np.asarray(obs, np.float32), {}
+
+    def step(self, action):
+        if self._state is None:
+            raise RuntimeError("GymEnv.step called before reset()")
+        a = np.asarray(action, dtype=np.float64).reshape(self.action_space.shape)
+        self._state, obs, reward = self._step_fn(self._state, jnp.asarray(a, self._dtype))
+        self._t += 1
+        truncated = self._t >= self.task.horizon
+        info = {"q": np.asarray(self._state.q, np.float64), "qd": np.asarray(self._state.qd, np.float64)}
+        return np.asarray(obs, np.float32), float(reward), False, bool(truncated), info
+
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn("GymEnv.render called without a render_mode; pass render_mode='rgb_array'")
+            return None
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        if self._state is None:
+            raise RuntimeError("GymEnv.render called before reset()")
+        pts = np.asarray(self._positions(self._state.q), np.float64)
+        reach = float(np.sum(np.asarray(self.task.chain.length))) + 0.2
+        w, h = self.frame_size
+        dpi = 80
+        fig = Figure(figsize=(w / dpi, h / dpi), dpi=dpi)
+        canvas = FigureCanvasAgg(fig)
+        ax = fig.add_axes((0, 0, 1, 1))
+        cx = pts[0, 0] if getattr(self.task, "cart", False) else 0.0
+        half_w = max(reach, reach * w / h)
+        ax.set_xlim(cx - half_w, cx + half_w)
+        ax.set_ylim(-reach, reach)
+        ax.set_aspect("equal", adjustable="box")
+        ax.axis("off")
+        ax.axhline(0.0, color="0.75", lw=1)
+        ax.plot(pts[:, 0], pts[:, 1], "o-", lw=4, color="tab:blue", mfc="k", ms=5)
+        canvas.draw()
+        frame = np.asarray(canvas.buffer_rgba())[..., :3].copy()
+        return frame
