@@ -98,4 +98,7 @@ def as_array(x, like=None):
         if like is None:
             return jnp.asarray(x)
         return jnp.full(jnp.shape(like), x, dtype=jnp.result_type(like))
+    if like is not None and jnp.shape(x) != jnp.shape(like):
+        # a parameter-only entry (e.g. a constant mass-matrix entry) under batched q
+        return jnp.broadcast_to(x, jnp.broadcast_shapes(jnp.shape(x), jnp.shape(like)))
     return x
