@@ -102,3 +102,4 @@ def as_array(x, like=None):
         # a parameter-only entry (e.g. a constant mass-matrix entry) under batched q
         return jnp.broadcast_to(x, jnp.broadcast_shapes(jnp.shape(x), jnp.shape(like)))
     return x
+

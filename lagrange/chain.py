@@ -45,9 +45,11 @@ def _concrete(x):
         raise TypeError(f"expected a real number, got {x!r} of type {type(x).__name__}") from err
 
 
-def _check_scalar(name: str, value, *, positive: bool = False, nonnegative: bool = False):
+def _check_scalar(name: str, value, *, positive: bool = False, nonnegative: bool = False, optional: bool = False):
     if value is None:
-        return None
+        if optional:
+            return None
+        raise TypeError(f"Link.{name} must be a real number, got None")
     if isinstance(value, (bool, np.bool_)) or isinstance(value, str):
         raise TypeError(f"Link.{name} must be a real number, got {value!r}")
     try:
@@ -81,7 +83,8 @@ class Link(eqx.Module):
             ``e`` [rad]; static.
         damping: viscous joint damping [N s/m or N m s/rad], >= 0.
         armature: rotor inertia added to the joint's diagonal of M, >= 0.
-        gear: if given, the joint is actuated with generalized force ``gear * u``; any finite value.
+        gear: if given (> 0), the joint is actuated with generalized force ``gear * u``; ``None``
+            (the default) leaves it passive. To reverse a motor, negate its control.
     """
 
     joint: str = eqx.field(static=True)
@@ -115,12 +118,12 @@ class Link(eqx.Module):
             raise ValueError(f"Link.joint must be one of {JOINTS}, got {self.joint!r}")
         _check_scalar("mass", self.mass, nonnegative=True)
         _check_scalar("length", self.length, nonnegative=True)
-        _check_scalar("com", self.com)
-        _check_scalar("inertia", self.inertia, nonnegative=True)
+        _check_scalar("com", self.com, optional=True)
+        _check_scalar("inertia", self.inertia, nonnegative=True, optional=True)
         _check_scalar("axis", self.axis)
         _check_scalar("damping", self.damping, nonnegative=True)
         _check_scalar("armature", self.armature, nonnegative=True)
-        _check_scalar("gear", self.gear)
+        _check_scalar("gear", self.gear, positive=True, optional=True)
 
 
 def _is_zero(x) -> bool:
@@ -163,8 +166,8 @@ class Chain(eqx.Module):
         for i, link in enumerate(links):
             if not isinstance(link, Link):
                 raise TypeError(f"Chain.links[{i}] must be a lagrange.chain.Link, got {type(link).__name__}")
-        if isinstance(gravity, (bool, str)):
-            raise TypeError(f"Chain.gravity must be a real number, got {gravity!r}")
+        if gravity is None or isinstance(gravity, (bool, str)):
+            raise TypeError(f"Chain.gravity must be a real number (use 0.0 for none), got {gravity!r}")
         g = _concrete(gravity)
         if g is not None:
             if g.shape != ():

@@ -32,7 +32,8 @@ from lagrange.kinematics import frames
 def _check(chain: Chain, name: str, x, size: int):
     shape = jnp.shape(x)
     if len(shape) == 0 or shape[-1] != size:
-        raise ValueError(f"{name} must have shape (..., {size}) for this chain, got {shape}")
+        what = " (the chain has no actuated joint: pass u=None)" if name == "u" and size == 0 else ""
+        raise ValueError(f"{name} must have shape (..., {size}) for this chain{what}, got {shape}")
 
 
 def _mass_entries(chain: Chain, f) -> list[list]:
@@ -72,10 +73,11 @@ def _generalized(chain: Chain, f, qd, *, velocity: bool, gravity: bool) -> list:
     return out
 
 
-UNITVEC_MAX = 6
+UNITVEC_MAX = 4
 """Chains of up to this many links use the relative-angle formulation of :mod:`lagrange._unitvec`
 (fewest operations for short chains); longer ones use the jets of :mod:`lagrange._jet`
-(O(n) transcendentals)."""
+(O(n) transcendentals). Measured on n-link pendulums, compiled arithmetic ops relative-angle /
+jets: n=2 38/68, n=3 131/160, n=4 458/494, n=5 1110/950, n=6 2390/1648."""
 
 
 def _terms(chain: Chain, q, qd, *, mass: bool, velocity: bool, gravity: bool):
@@ -131,8 +133,8 @@ def actuation_matrix(chain: Chain) -> jnp.ndarray:
 
 def _actuation(chain: Chain, u) -> list:
     out = [0.0] * chain.n
+    _check(chain, "u", u, chain.m)
     if chain.m:
-        _check(chain, "u", u, chain.m)
         for k, j in enumerate(chain.actuated):
             out[j] = s.mul(chain.gear[k], u[..., k])
     return out
