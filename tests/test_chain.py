@@ -1,0 +1,292 @@
+"""Bad input: every mistake listed in the issue raises ValueError/TypeError naming the field (and
+the allowed values), at construction or trace time; a non-finite state at run time is reported,
+never returned silently."""
+
+import math
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import lagrange as lg
+from lagrange.chain import Chain, Link
+
+NAN, INF = math.nan, math.inf
+
+
+def acrobot():
+    return lg.systems.acrobot()
+
+
+# ------------------------------------------------------------------ link parameters
+
+# (field, bad value, message pattern): the pattern names the field and the allowed range
+NONNEGATIVE = ["mass", "length", "inertia", "damping", "armature"]
+BAD_VALUES = (
+    [(f, -1.0, rf"Link\.{f} must be >= 0") for f in NONNEGATIVE]
+    + [(f, NAN, rf"Link\.{f} must be finite") for f in NONNEGATIVE + ["gear", "com"]]
+    + [(f, INF, rf"Link\.{f} must be finite") for f in NONNEGATIVE + ["gear", "com"]]
+    + [(f, -INF, rf"Link\.{f} must be finite") for f in ["mass", "gear"]]
+)
+
+
+def _link(field, value):
+    kwargs = dict(mass=1.0, length=1.0)
+    kwargs[field] = value
+    return Link("revolute", **kwargs)
+
+
+@pytest.mark.parametrize("field,value,pattern", BAD_VALUES, ids=[f"{f}={v}" for f, v, _ in BAD_VALUES])
+def test_bad_link_value(field, value, pattern):
+    with pytest.raises(ValueError, match=pattern):
+        _link(field, value)
+
+
+def test_negative_gear():
+    """The issue lists a negative gear as bad input (the sign of an actuator belongs in the policy)."""
+    with pytest.raises(ValueError, match=r"Link\.gear"):
+        _link("gear", -1.0)
+
+
+# None is a non-numeric value too, except where it means something (default com/inertia, no gear)
+NON_NUMERIC = [(f, v) for f in NONNEGATIVE + ["com", "gear"] for v in ("heavy", True, object())] + [
+    (f, None) for f in ("mass", "length", "damping", "armature")
+]
+
+
+@pytest.mark.parametrize("field,value", NON_NUMERIC, ids=[f"{f}={type(v).__name__}" for f, v in NON_NUMERIC])
+def test_non_numeric_link_value(field, value):
+    with pytest.raises(TypeError, match=rf"Link\.{field} must be a real number"):
+        Chain([_link(field, value)])
+
+
+def test_array_valued_link_parameter():
+    with pytest.raises(ValueError, match=r"Link\.mass must be a scalar"):
+        Link("revolute", jnp.ones(2), 1.0)
+
+
+def test_values_from_the_catalogue_are_checked_too():
+    with pytest.raises(ValueError, match=r"Link\.mass must be >= 0"):
+        lg.systems.acrobot(masses=(2.5, -1.0))
+    with pytest.raises(ValueError, match=r"Link\.length must be finite"):
+        lg.systems.cartpole(pole_length=NAN)
+
+
+@pytest.mark.parametrize("joint", ["spherical", "Revolute", 3, None])
+def test_unknown_joint_kind(joint):
+    with pytest.raises(ValueError, match=r"Link\.joint must be one of \('revolute', 'prismatic'\)"):
+        Link(joint, 1.0, 1.0)
+
+
+# ------------------------------------------------------------------ chain
+
+
+def test_no_links():
+    with pytest.raises(ValueError, match=r"Chain\.links must contain at least one Link"):
+        Chain([])
+    with pytest.raises(ValueError, match=r"n must be an integer >= 1"):
+        lg.systems.n_link_pendulum(0)
+
+
+def test_links_that_are_not_links():
+    with pytest.raises(TypeError, match=r"Chain\.links\[1\] must be a lagrange\.chain\.Link"):
+        Chain([Link("revolute", 1.0, 1.0), {"joint": "revolute"}])
+    with pytest.raises(TypeError, match=r"Chain\.links must be a sequence of Link"):
+        Chain(Link("revolute", 1.0, 1.0))
+
+
+def test_singular_mass_matrix():
+    """A massless, inertia-less tip link: its joint moves nothing, M is singular."""
+    with pytest.raises(ValueError, match=r"singular mass matrix.*links \[1\] have zero mass and zero inertia"):
+        Chain([Link("revolute", 1.0, 1.0), Link("revolute", 0.0, 1.0, inertia=0.0)])
+    # a massless prismatic cart carrying nothing is singular as well
+    with pytest.raises(ValueError, match=r"singular mass matrix"):
+        Chain([Link("prismatic", 0.0, inertia=0.0)])
+
+
+def test_massless_link_with_inertia_or_armature_is_fine():
+    """The check is not over-eager: inertia or armature alone make M regular."""
+    Chain([Link("revolute", 1.0, 1.0), Link("revolute", 0.0, 1.0, inertia=0.1)])
+    Chain([Link("revolute", 1.0, 1.0), Link("revolute", 0.0, 1.0, inertia=0.0, armature=0.1)])
+
+
+@pytest.mark.parametrize("gravity", [NAN, INF, -INF])
+def test_non_finite_gravity(gravity):
+    with pytest.raises(ValueError, match=r"Chain\.gravity must be finite"):
+        Chain([Link("revolute", 1.0, 1.0)], gravity=gravity)
+    with pytest.raises(ValueError, match=r"Chain\.gravity must be finite"):
+        lg.systems.pendulum(gravity=gravity)
+
+
+@pytest.mark.parametrize("gravity", ["down", None, (0.0, -9.81)], ids=["str", "None", "vector"])
+def test_non_numeric_gravity(gravity):
+    with pytest.raises((TypeError, ValueError), match=r"Chain\.gravity must be a (real number|scalar)"):
+        Chain([Link("revolute", 1.0, 1.0)], gravity=gravity)
+
+
+# ------------------------------------------------------------------ shapes of q, qd, u
+
+
+@pytest.mark.parametrize(
+    "fn",
+    [
+        lambda c, q, qd, u: lg.mass_matrix(c, q),
+        lambda c, q, qd, u: lg.gravity_forces(c, q),
+        lambda c, q, qd, u: lg.bias_forces(c, q, qd),
+        lambda c, q, qd, u: lg.forward_dynamics(c, q, qd, u),
+        lambda c, q, qd, u: lg.inverse_dynamics(c, q, qd, qd),
+        lambda c, q, qd, u: lg.energy(c, q, qd),
+        lambda c, q, qd, u: lg.step(c, q, qd, u, 0.01),
+    ],
+    ids=["mass_matrix", "gravity_forces", "bias_forces", "forward_dynamics", "inverse_dynamics", "energy", "step"],
+)
+def test_wrong_shape_q(fn):
+    c, ok = acrobot(), jnp.zeros(2)
+    for bad in (jnp.zeros(3), jnp.zeros(()), jnp.zeros((4, 1))):
+        with pytest.raises(ValueError, match=r"\bq must have shape \(\.\.\., 2\)"):
+            fn(c, bad, ok, jnp.zeros(1))
+
+
+@pytest.mark.parametrize(
+    "fn",
+    [
+        lambda c, q, qd, u: lg.bias_forces(c, q, qd),
+        lambda c, q, qd, u: lg.forward_dynamics(c, q, qd, u),
+        lambda c, q, qd, u: lg.energy(c, q, qd),
+        lambda c, q, qd, u: lg.step(c, q, qd, u, 0.01),
+    ],
+    ids=["bias_forces", "forward_dynamics", "energy", "step"],
+)
+def test_wrong_shape_qd(fn):
+    c, ok = acrobot(), jnp.zeros(2)
+    with pytest.raises(ValueError, match=r"\bqd must have shape \(\.\.\., 2\)"):
+        fn(c, ok, jnp.zeros(3), jnp.zeros(1))
+
+
+def test_wrong_shape_qdd():
+    with pytest.raises(ValueError, match=r"\bqdd must have shape \(\.\.\., 2\)"):
+        lg.inverse_dynamics(acrobot(), jnp.zeros(2), jnp.zeros(2), jnp.zeros(1))
+
+
+@pytest.mark.parametrize("u", [jnp.zeros(2), jnp.zeros(())], ids=["(2,)", "()"])
+def test_wrong_shape_u(u):
+    c, z = acrobot(), jnp.zeros(2)
+    with pytest.raises(ValueError, match=r"\bu must have shape \(\.\.\., 1\)"):
+        lg.forward_dynamics(c, z, z, u)
+    with pytest.raises(ValueError, match=r"\bu must have shape \(\.\.\., 1\)"):
+        lg.step(c, z, z, u, 0.01)
+
+
+def test_control_for_an_unactuated_chain():
+    """An unactuated chain takes u=None (or shape (..., 0)); a real control would be dropped silently."""
+    c, z = lg.systems.n_link_pendulum(2), jnp.zeros(2)
+    with pytest.raises(ValueError, match=r"\bu must have shape \(\.\.\., 0\)"):
+        lg.forward_dynamics(c, z, z, jnp.ones(1))
+
+
+@pytest.mark.parametrize("which", ["q0", "qd0"])
+def test_simulate_wrong_shape_state(which):
+    c = acrobot()
+    args = {"q0": jnp.zeros(2), "qd0": jnp.zeros(2)}
+    args[which] = jnp.zeros((1, 2))
+    with pytest.raises(ValueError, match=rf"{which} must have shape \(2,\)"):
+        lg.simulate(c, args["q0"], args["qd0"], jnp.zeros((3, 1)), 0.01)
+
+
+@pytest.mark.parametrize("controls", [jnp.zeros(5), jnp.zeros((5, 2)), jnp.zeros((5, 1, 1))], ids=["(5,)", "(5,2)", "(5,1,1)"])
+def test_controls_of_wrong_shape(controls):
+    z = jnp.zeros(2)
+    with pytest.raises(ValueError, match=r"controls must have shape \(T, 1\)"):
+        lg.simulate(acrobot(), z, z, controls, 0.01)
+
+
+def test_policy_returning_wrong_shape():
+    z = jnp.zeros(2)
+    with pytest.raises(ValueError, match=r"policy must return u of shape \(1,\)"):
+        lg.simulate(acrobot(), z, z, lambda t, q, qd: jnp.ones(2), 0.01, steps=3)
+    with pytest.raises(ValueError, match=r"steps .* is required with a policy"):
+        lg.simulate(acrobot(), z, z, lambda t, q, qd: jnp.ones(1), 0.01)
+
+
+# ------------------------------------------------------------------ integration settings
+
+
+@pytest.mark.parametrize("dt", [0.0, -0.01, NAN, INF])
+def test_bad_dt(dt):
+    z = jnp.zeros(2)
+    with pytest.raises(ValueError, match=r"dt must be a finite number > 0"):
+        lg.simulate(acrobot(), z, z, jnp.zeros((3, 1)), dt)
+    with pytest.raises(ValueError, match=r"dt must be a finite number > 0"):
+        lg.step(acrobot(), z, z, jnp.zeros(1), dt)
+
+
+def test_non_numeric_dt():
+    z = jnp.zeros(2)
+    with pytest.raises(TypeError, match=r"dt must be a positive real number"):
+        lg.simulate(acrobot(), z, z, jnp.zeros((3, 1)), "fast")
+
+
+@pytest.mark.parametrize(
+    "solver", ["rk4", lg.RK4, diffrax.Kvaerno5(), None], ids=["str", "class", "implicit", "None"]
+)
+def test_not_a_solver(solver):
+    z = jnp.zeros(2)
+    with pytest.raises(TypeError, match=r"solver must be"):
+        lg.simulate(acrobot(), z, z, jnp.zeros((3, 1)), 0.01, solver)
+    with pytest.raises(TypeError, match=r"solver must be"):
+        lg.step(acrobot(), z, z, jnp.zeros(1), 0.01, solver)
+
+
+@pytest.mark.parametrize("substeps", [0, -1, 1.5, True])
+def test_bad_substeps(substeps):
+    z = jnp.zeros(2)
+    with pytest.raises(ValueError, match=r"substeps must be an integer >= 1"):
+        lg.simulate(acrobot(), z, z, jnp.zeros((3, 1)), 0.01, substeps=substeps)
+
+
+@pytest.mark.parametrize("solver", [lg.RK4(), lg.Euler(), lg.SemiImplicitEuler()], ids=lambda s: type(s).__name__)
+def test_rtol_without_an_adaptive_solver(solver):
+    z = jnp.zeros(2)
+    with pytest.raises(ValueError, match=r"rtol/atol cannot be used.*Tsit5\(\), Dopri5\(\) or Dopri8\(\)"):
+        lg.simulate(acrobot(), z, z, jnp.zeros((3, 1)), 0.01, solver, rtol=1e-6, atol=1e-6)
+
+
+def test_rtol_without_atol_and_bad_tolerances():
+    z = jnp.zeros(2)
+    with pytest.raises(ValueError, match=r"needs both rtol and atol"):
+        lg.simulate(acrobot(), z, z, jnp.zeros((3, 1)), 0.01, lg.Dopri5(), rtol=1e-6)
+    with pytest.raises(ValueError, match=r"rtol and atol must be > 0"):
+        lg.simulate(acrobot(), z, z, jnp.zeros((3, 1)), 0.01, lg.Dopri5(), rtol=-1e-6, atol=1e-6)
+
+
+def test_simulate_needs_a_chain():
+    z = jnp.zeros(2)
+    with pytest.raises(TypeError, match=r"chain must be a lagrange\.chain\.Chain"):
+        lg.simulate([Link("revolute", 1.0, 1.0)], z, z, jnp.zeros((3, 1)), 0.01)
+
+
+# ------------------------------------------------------------------ run time
+
+
+def test_non_finite_state_is_reported():
+    """A huge control drives the state to inf/NaN: simulate raises instead of returning it."""
+    z = jnp.zeros(2)
+    huge = jnp.full((20, 1), 1e300)
+    with pytest.raises(RuntimeError, match=r"non-finite"):
+        traj = lg.simulate(acrobot(), z, z, huge, 0.01)
+        jax.block_until_ready(traj.q)
+    # also under jit, where the controls are only known at run time
+    run = eqx.filter_jit(lambda u: lg.simulate(acrobot(), z, z, u, 0.01).q)
+    with pytest.raises(RuntimeError, match=r"non-finite"):
+        jax.block_until_ready(run(huge))
+    # the same program with sane controls runs: the check is not a false alarm
+    assert np.all(np.isfinite(np.asarray(run(jnp.zeros((20, 1))))))
+
+
+def test_non_finite_initial_state_is_reported():
+    with pytest.raises(RuntimeError, match=r"non-finite"):
+        traj = lg.simulate(acrobot(), jnp.array([NAN, 0.0]), jnp.zeros(2), jnp.zeros((3, 1)), 0.01)
+        jax.block_until_ready(traj.q)
