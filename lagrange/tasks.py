@@ -21,6 +21,12 @@ double_cartpole  (x, q1, q2) / (dx, dq1, dq2)     cart force 1000 a N      (x, s
                                                                            dx, dth1, dth2)                                max 5000
 ===============  ===============================  =======================  =============================================  ==========================================================
 
+``Task(..., trig=True)`` observes ``(sin th, cos th, dth)`` (plus ``x, dx`` with a cart) instead of the
+wrapped angles; it is the double cartpole's layout and an option elsewhere (the acrobot example uses
+it: the wrapped first angle jumps by 2 pi at every swing through hanging). ``upright=True`` starts
+balanced (balance-only variants, used in tests). ``chain_swingup(chain)`` makes the acrobot's task for
+any fixed-base revolute chain with at least one motor.
+
 Physical parameters (paper-facts; unstated ones chosen and documented in :mod:`lagrange.systems`):
 acrobot two links 1 m, 2.5 kg; cartpole cart 10.47 kg, pole 5.02 kg, 1 m; double cartpole cart
 10.47 kg, poles 5.02 kg, 1 m each; thin-rod inertias ``m l^2 / 12``. Control intervals: 0.01 s,
@@ -84,6 +90,9 @@ class Task(eqx.Module):
     ``kind`` selects the observation and reward ("acrobot", "cartpole", "double_cartpole", or
     "chain" for a fixed-base chain of revolute links with the acrobot's reward, used by
     :func:`chain_swingup`). ``cart`` says whether ``q[0]`` is a prismatic cart coordinate.
+    ``trig=True`` (not the paper's, except for the double cartpole where it is the default layout)
+    observes ``(x, sin th, cos th, dx, dth)`` instead of the wrapped angles, which jump by 2 pi as a
+    pole swings through hanging.
     """
 
     chain: Chain
@@ -94,6 +103,7 @@ class Task(eqx.Module):
     noise: float = eqx.field(static=True, default=0.01)
     solver: object = eqx.field(static=True, default=RK4())
     upright: bool = eqx.field(static=True, default=False)
+    trig: bool = eqx.field(static=True, default=False)
 
     @property
     def cart(self) -> bool:
@@ -111,8 +121,8 @@ class Task(eqx.Module):
     @property
     def observation_size(self) -> int:
         n = self.n_links
-        if self.kind == "double_cartpole":
-            return 2 + 3 * n
+        if self.kind == "double_cartpole" or self.trig:
+            return 3 * n + (2 if self.cart else 0)
         return self.chain.n * 2
 
     # -- state ------------------------------------------------------------------------------
@@ -151,8 +161,8 @@ class Task(eqx.Module):
     def observe(self, state: TaskState):
         """The authors' observation vector (see the module table)."""
         th, dth = self.angles(state), self.angular_velocities(state)
-        if self.kind == "double_cartpole":
-            x, dx = state.q[:1], state.qd[:1]
+        if self.kind == "double_cartpole" or self.trig:
+            x, dx = (state.q[:1], state.qd[:1]) if self.cart else (state.q[:0], state.qd[:0])
             return jnp.concatenate([x, jnp.sin(th), jnp.cos(th), dx, dth])
         if self.cart:
             return jnp.concatenate([state.q[:1], th, state.qd[:1], dth])

@@ -1,0 +1,181 @@
+"""The command-line driver behind the swing-up examples: train with CE-APG, then write the artefacts.
+
+Writes to ``--out``: ``checkpoint.eqx`` (equinox serialisation + JSON header, written atomically every
+iteration), ``results.json``, ``learning_curve.png``, ``swingup.png`` and ``swingup.gif``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import time
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib import animation  # noqa: E402
+
+import lagrange as lg  # noqa: E402
+from lagrange.tasks import Task, balanced  # noqa: E402
+from optim import ce_apg  # noqa: E402
+from optim._loop import run  # noqa: E402
+from optim.apg import config_to_dict, episode, evaluate  # noqa: E402
+
+EVAL_EPISODES = 16
+
+
+def parse(description: str, default_out: str, argv=None):
+    p = argparse.ArgumentParser(description=description, formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("--seed", type=int, default=0, help="PRNG seed (training and evaluation starts)")
+    p.add_argument("--iterations", type=int, default=None, help="CE iterations (default: the config's)")
+    p.add_argument("--out", default=default_out, help="output folder")
+    p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.eqx if it exists")
+    p.add_argument("--quick", action="store_true", help="a short demo run (about two minutes on two cores)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    return p.parse_args(argv)
+
+
+def main(description: str, default_out: str, config: ce_apg.CEAPGConfig, quick: ce_apg.CEAPGConfig,
+         task: Task | None = None, paper_return: float | None = None, argv=None) -> dict:
+    args = parse(description, default_out, argv)
+    cfg = quick if args.quick else config
+    if args.iterations is not None:
+        if args.iterations < 1:
+            raise SystemExit(f"--iterations must be >= 1, got {args.iterations}")
+        cfg = dataclasses.replace(cfg, iterations=args.iterations)
+    os.makedirs(args.out, exist_ok=True)
+    trainer = ce_apg.make_trainer(cfg, task)
+    task = trainer.task
+    ckpt = os.path.join(args.out, "checkpoint.eqx")
+    if not args.resume and os.path.exists(ckpt):
+        os.remove(ckpt)
+    print(f"CE-APG on {cfg.task}: {cfg.iterations} iterations x {cfg.env_steps_per_iteration():.2e} env steps; "
+          f"{len(jax.devices())} device(s); writing to {args.out}")
+    state, history = run(trainer, jax.random.PRNGKey(args.seed), iterations=cfg.iterations, ckpt_path=ckpt,
+                         resume=args.resume, progress=not args.no_progress, seed=args.seed)
+
+    # Deterministic evaluation of the best candidate and of the CE mean on the same random starts.
+    eval_key = jax.random.PRNGKey(10_000 + args.seed)
+    evals = {}
+    for which in ("best", "mean"):
+        policy, norm = trainer.policy(state, which)
+        rets, bal = jax.jit(lambda k: evaluate(task, policy, norm, k, EVAL_EPISODES))(eval_key)
+        evals[which] = (np.asarray(rets), np.asarray(bal), policy, norm)
+    which = max(evals, key=lambda w: evals[w][0].mean())  # ship the better of the two
+    rets, bal, policy, norm = evals[which]
+    ep = jax.jit(lambda k: episode(task, policy, norm, k))(eval_key)
+    results = {
+        "task": cfg.task,
+        "return": float(rets.mean()),
+        "return_std": float(rets.std()),
+        "balanced": bool(bal.all()),
+        "balanced_fraction": float(bal.mean()),
+        "eval_episodes": EVAL_EPISODES,
+        "policy": which,
+        "returns_by_policy": {w: float(v[0].mean()) for w, v in evals.items()},
+        "example_episode_return": float(ep.ret),
+        "example_episode_balanced": bool(balanced(task, ep.q)),
+        "env_steps": history[-1]["env_steps"] if history else 0.0,
+        "iterations": cfg.iterations,
+        "wall_clock_seconds": history[-1]["elapsed"] if history else 0.0,
+        "seed": args.seed,
+        "devices": len(jax.devices()),
+        "paper_return": paper_return,
+        "config": config_to_dict(cfg),
+    }
+    with open(os.path.join(args.out, "results.json"), "w") as f:
+        json.dump(results, f, indent=2)
+    learning_curve(history, os.path.join(args.out, "learning_curve.png"), cfg, paper_return)
+    episode_plot(task, ep, os.path.join(args.out, "swingup.png"))
+    episode_gif(task, ep, os.path.join(args.out, "swingup.gif"))
+    print(f"return {results['return']:.0f} +- {results['return_std']:.0f} over {EVAL_EPISODES} episodes "
+          f"({which} policy), balanced in {results['balanced_fraction']:.0%}; "
+          f"{results['env_steps']:.2e} env steps, {results['wall_clock_seconds']:.0f} s")
+    return results
+
+
+def learning_curve(history, path, cfg, paper_return):
+    fig, ax = plt.subplots(figsize=(6, 4))
+    steps = np.array([h["env_steps"] for h in history])
+    for key, label in (("best_return", "best candidate"), ("elite_return", "elite mean"),
+                       ("mean_return", "all candidates (finite)")):
+        if history and key in history[0]:
+            ax.plot(steps, [h[key] for h in history], label=label)
+    if paper_return is not None:
+        ax.axhline(paper_return, color="k", ls="--", lw=1, label=f"paper CE-APG ({paper_return:g})")
+        lo, hi = ax.get_ylim()
+        ax.set_ylim(min(lo, paper_return), max(hi, paper_return + 0.05 * (hi - lo)))
+    ax.set_xlabel("simulated environment steps")
+    ax.set_ylabel("fitness (mean of last batch returns)")
+    ax.set_title(f"CE-APG on {cfg.task}")
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _readings(task: Task, ep):
+    states = lg.tasks.TaskState(ep.q, ep.qd)
+    th = jax.vmap(task.angles)(states)
+    dth = jax.vmap(task.angular_velocities)(states)
+    return np.asarray(th), np.asarray(dth)
+
+
+def episode_plot(task: Task, ep, path):
+    th, dth = _readings(task, ep)
+    t = np.arange(th.shape[0]) * task.dt
+    force = np.asarray(ep.actions) * np.asarray(task.chain.gear)
+    fig, axes = plt.subplots(3, 1, figsize=(7, 7), sharex=True)
+    for i in range(th.shape[1]):
+        lab = "th1 (0 = upright)" if i == 0 else f"th{i + 1} (0 = straight)"
+        axes[0].plot(t, th[:, i], label=lab)
+        axes[1].plot(t, dth[:, i], label=f"dth{i + 1}")
+    if task.cart:
+        axes[0].plot(t, np.asarray(ep.q[:, 0]), "k:", label="cart x [m]")
+    axes[0].axhspan(-0.2, 0.2, color="g", alpha=0.1, label="balanced band +-0.2")
+    axes[0].set_ylabel("angle [rad]")
+    axes[1].set_ylabel("velocity [rad/s]")
+    unit = "N" if task.cart else "N m"
+    axes[2].plot(t[:-1], force)
+    axes[2].set_ylabel(f"actuation [{unit}]")
+    axes[2].set_xlabel("time [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7, loc="upper right")
+    axes[1].legend(fontsize=7, loc="upper right")
+    axes[0].set_title(f"{task.kind}: return {float(ep.ret):.0f}, balanced {bool(balanced(task, ep.q))}")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def episode_gif(task: Task, ep, path, *, every: int | None = None):
+    every = every or max(1, int(round(0.05 / task.dt)))
+    pts = np.asarray(jax.vmap(lambda q: lg.positions(task.chain, q))(ep.q[::every]))
+    reach = float(np.sum(np.asarray(task.chain.length))) + 0.2
+    xs = pts[..., 0]
+    fig, ax = plt.subplots(figsize=(4, 4) if not task.cart else (6, 3.5))
+    xlo, xhi = (min(xs.min() - 0.3, -reach), max(xs.max() + 0.3, reach)) if task.cart else (-reach, reach)
+    ax.set_xlim(xlo, xhi)
+    ax.set_ylim(-reach, reach)
+    ax.set_aspect("equal")
+    ax.axhline(0, color="0.8", lw=0.8)
+    (line,) = ax.plot([], [], "o-", lw=3, color="tab:blue", mfc="k")
+    text = ax.text(0.02, 0.95, "", transform=ax.transAxes, fontsize=8, va="top")
+
+    def frame(i):
+        line.set_data(pts[i, :, 0], pts[i, :, 1])
+        text.set_text(f"t = {i * every * task.dt:4.2f} s")
+        return line, text
+
+    anim = animation.FuncAnimation(fig, frame, frames=pts.shape[0], blit=True)
+    anim.save(path, writer=animation.PillowWriter(fps=int(round(1 / (every * task.dt)))))
+    plt.close(fig)

@@ -1,0 +1,38 @@
+"""Define a new chain with lagrange.chain and train a policy to swing it up.
+
+A three-link arm: a heavy upper link, a light middle link and a short forearm; the first two joints
+are motorised (the wrist is passive). Observations, reward and balance criterion are the acrobot's
+(``lagrange.tasks.chain_swingup``).
+
+    python examples/custom_chain.py [--quick] [--seed S] [--iterations N] [--out DIR] [--resume]
+"""
+
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from _swingup import main  # noqa: E402
+
+from lagrange.chain import Chain, Link  # noqa: E402
+from lagrange.tasks import chain_swingup  # noqa: E402
+from optim.ce_apg import CEAPGConfig  # noqa: E402
+
+chain = Chain(
+    [
+        Link("revolute", mass=2.0, length=0.8, damping=0.05, gear=30.0),  # shoulder motor, 30 N m
+        Link("revolute", mass=1.0, length=0.6, damping=0.05, gear=15.0),  # elbow motor, 15 N m
+        Link("revolute", mass=0.5, length=0.4, damping=0.05),  # passive wrist
+    ],
+    gravity=9.81,
+)
+TASK = chain_swingup(chain, dt=0.02, horizon=250)
+
+CONFIG = CEAPGConfig(task="custom", num_candidates=24, num_elites=8, iterations=40, apg_steps=25, episodes=2,
+                     horizon=250, lr_start=1e-2, lr_end=1e-4, init_std=0.15)
+QUICK = CEAPGConfig(task="custom", num_candidates=8, num_elites=3, iterations=8, apg_steps=10, episodes=2,
+                    horizon=250, lr_start=1e-2, lr_end=1e-3, init_std=0.15)
+
+if __name__ == "__main__":
+    main(__doc__.splitlines()[0], "runs/custom_chain", CONFIG, QUICK, task=TASK)

@@ -1,0 +1,87 @@
+"""Atomic, versioned checkpoints of a training state: a JSON header line + equinox leaf serialisation.
+
+File layout: one line of UTF-8 JSON (``{"format": "lagrange-checkpoint", "version": 1, "config":
+..., "iteration": ..., "history": [...], ...}``) followed by ``eqx.tree_serialise_leaves`` bytes of
+the state. No pickle. Writes go to a temporary file in the same folder, are flushed and fsynced,
+and then ``os.replace``-d over the target, so a kill mid-write leaves the previous checkpoint intact.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import tempfile
+
+import equinox as eqx
+
+FORMAT = "lagrange-checkpoint"
+VERSION = 1
+
+
+class CheckpointError(ValueError):
+    """A checkpoint that is corrupt, of another format version, or from a different config."""
+
+
+def save(path, state, *, config: dict, **header) -> None:
+    """Atomically write ``state`` (a pytree of arrays) with ``config`` and any JSON-able ``header`` fields."""
+    path = os.fspath(path)
+    head = {"format": FORMAT, "version": VERSION, "config": config, **header}
+    buf = io.BytesIO()
+    eqx.tree_serialise_leaves(buf, state)
+    folder = os.path.dirname(os.path.abspath(path))
+    os.makedirs(folder, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=".ckpt-", dir=folder)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(json.dumps(head).encode() + b"\n")
+            f.write(buf.getvalue())
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def read_header(path) -> dict:
+    """The JSON header of a checkpoint; raises :class:`CheckpointError` if it is not one."""
+    path = os.fspath(path)
+    with open(path, "rb") as f:
+        line = f.readline()
+    try:
+        head = json.loads(line)
+    except (UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise CheckpointError(f"{path} is not a lagrange checkpoint (unreadable header): {err}") from None
+    if not isinstance(head, dict) or head.get("format") != FORMAT:
+        raise CheckpointError(f"{path} is not a lagrange checkpoint (header format is {head!r:.80})")
+    if head.get("version") != VERSION:
+        raise CheckpointError(f"{path} has checkpoint format version {head.get('version')!r}; "
+                              f"this code reads version {VERSION}")
+    return head
+
+
+def load(path, like, *, config: dict | None = None):
+    """``(state, header)`` from ``path``; ``like`` is a state of the same structure (e.g. ``trainer.init(key)``).
+
+    If ``config`` is given it must equal the checkpoint's config; otherwise the differing fields are named.
+    """
+    path = os.fspath(path)
+    head = read_header(path)
+    if config is not None and head["config"] != config:
+        saved = head["config"]
+        diff = sorted(k for k in set(saved) | set(config) if saved.get(k) != config.get(k))
+        detail = ", ".join(f"{k}: checkpoint {saved.get(k)!r} vs requested {config.get(k)!r}" for k in diff)
+        raise CheckpointError(f"{path} was written with a different config ({detail})")
+    with open(path, "rb") as f:
+        f.readline()
+        payload = f.read()
+    try:
+        buf = io.BytesIO(payload)
+        state = eqx.tree_deserialise_leaves(buf, like)
+        if buf.read(1):
+            raise ValueError("trailing bytes after the last leaf")
+    except Exception as err:  # numpy / equinox raise several types on truncated or garbled data
+        raise CheckpointError(f"{path} is corrupt (its state does not deserialise: {err})") from None
+    return state, head

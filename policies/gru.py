@@ -1,0 +1,49 @@
+"""The CE-APG authors' recurrent policy, on :class:`equinox.nn.GRUCell`."""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+
+class GRUPolicy(eqx.Module):
+    """Deterministic recurrent policy: Dense(H)+ReLU -> GRU cell (hidden size = observation size)
+    -> Dense(H)+ReLU -> Dense(H)+ReLU -> Dense(action) + tanh (the authors' layout; H = 16, or 32
+    for the double cartpole).
+
+    The hidden state is explicit: ``policy(obs, hidden, reset) -> (action, hidden)`` with
+    ``obs`` (obs_size,), ``hidden`` (obs_size,) and actions in ``[-1, 1]`` (action_size,). When
+    ``reset`` is true (an episode starts) the incoming hidden state is replaced by zeros.
+    """
+
+    embed: eqx.nn.Linear
+    cell: eqx.nn.GRUCell
+    fc1: eqx.nn.Linear
+    fc2: eqx.nn.Linear
+    head: eqx.nn.Linear
+    hidden_size: int = eqx.field(static=True)
+
+    def __init__(self, obs_size: int, action_size: int, width: int = 16, *, key, dtype=None):
+        for name, v in (("obs_size", obs_size), ("action_size", action_size), ("width", width)):
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise ValueError(f"GRUPolicy {name} must be an integer >= 1, got {v!r}")
+        k = jax.random.split(key, 5)
+        self.embed = eqx.nn.Linear(obs_size, width, dtype=dtype, key=k[0])
+        self.cell = eqx.nn.GRUCell(width, obs_size, dtype=dtype, key=k[1])
+        self.fc1 = eqx.nn.Linear(obs_size, width, dtype=dtype, key=k[2])
+        self.fc2 = eqx.nn.Linear(width, width, dtype=dtype, key=k[3])
+        self.head = eqx.nn.Linear(width, action_size, dtype=dtype, key=k[4])
+        self.hidden_size = obs_size
+
+    def initial_state(self) -> jax.Array:
+        """The zero hidden state (hidden_size,)."""
+        return jnp.zeros(self.hidden_size, self.fc1.weight.dtype)
+
+    def __call__(self, obs, hidden, reset=False):
+        hidden = jnp.where(reset, jnp.zeros_like(hidden), hidden)
+        x = jax.nn.relu(self.embed(obs))
+        hidden = self.cell(x, hidden)
+        x = jax.nn.relu(self.fc1(hidden))
+        x = jax.nn.relu(self.fc2(x))
+        return jnp.tanh(self.head(x)), hidden

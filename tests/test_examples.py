@@ -1,0 +1,44 @@
+"""The main example end to end: a (shortened) --quick run writes every artefact and results.json has
+the documented fields (resume itself is tested on the same host loop in test_optim)."""
+
+import json
+import os
+import subprocess
+import sys
+
+from PIL import Image
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def _run(*args):
+    env = dict(os.environ, MPLBACKEND="Agg")
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "examples", "acrobot_swingup.py"), *args],
+                          capture_output=True, text=True, env=env, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return proc
+
+
+def test_help():
+    out = _run("--help").stdout
+    for flag in ("--seed", "--iterations", "--out", "--resume", "--quick"):
+        assert flag in out
+
+
+def test_quick_run_writes_every_artefact(tmp_path):
+    out = tmp_path / "run"
+    _run("--quick", "--iterations", "1", "--out", str(out), "--seed", "3", "--no-progress")
+    for name in ("checkpoint.eqx", "results.json", "learning_curve.png", "swingup.png", "swingup.gif"):
+        assert (out / name).stat().st_size > 0, name
+    res = json.loads((out / "results.json").read_text())
+    for field in ("return", "balanced", "env_steps", "wall_clock_seconds", "seed", "config"):
+        assert field in res, field
+    assert res["seed"] == 3 and res["iterations"] == 1
+    assert res["config"]["algorithm"] == "CEAPGConfig" and res["config"]["task"] == "acrobot"
+    cfg = res["config"]
+    assert res["env_steps"] == cfg["num_candidates"] * cfg["apg_steps"] * cfg["episodes"] * cfg["horizon"]
+    assert isinstance(res["balanced"], bool)
+    assert -5000 < res["return"] <= 5000
+    gif = Image.open(out / "swingup.gif")
+    assert gif.n_frames > 50  # the 5-s episode, one frame per 0.05 s
+    assert Image.open(out / "swingup.png").size[0] > 300

@@ -1,0 +1,234 @@
+"""Optimisers: config validation, CEM on a quadratic, APG and CE-APG reaching stated returns on small
+pendulum tasks, non-finite candidates, checkpoints (round trip, corrupt, mismatched), resume equals an
+uninterrupted run, and 4 forced host devices give the single-device result."""
+
+import dataclasses
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import lagrange as lg
+from lagrange.tasks import chain_swingup
+from optim import apg, ce_apg, cem, checkpoint, papg
+from optim._loop import params_equal, run
+from optim.apg import evaluate
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+# --------------------------------------------------------------------------- configs
+@pytest.mark.parametrize(
+    "make, field",
+    [
+        (lambda: ce_apg.CEAPGConfig(num_candidates=0), "num_candidates"),
+        (lambda: ce_apg.CEAPGConfig(num_candidates=4, num_elites=5), "num_elites"),
+        (lambda: ce_apg.CEAPGConfig(lr_start=-1e-3), "lr_start"),
+        (lambda: ce_apg.CEAPGConfig(lr_end=float("nan")), "lr_end"),
+        (lambda: ce_apg.CEAPGConfig(task="hopper"), "task"),
+        (lambda: ce_apg.CEAPGConfig(init_std=-0.1), "init_std"),
+        (lambda: ce_apg.CEAPGConfig(apg_steps=3, fitness_window=5), "fitness_window"),
+        (lambda: ce_apg.CEAPGConfig(policy="transformer"), "policy"),
+        (lambda: apg.APGConfig(learning_rate=-1.0), "learning_rate"),
+        (lambda: apg.APGConfig(episodes=0), "episodes"),
+        (lambda: papg.PAPGConfig(num_runs=0), "num_runs"),
+    ],
+)
+def test_bad_configs_name_the_field(make, field):
+    with pytest.raises(ValueError, match=field):
+        make()
+
+
+def test_paper_presets():
+    c = ce_apg.CEAPGConfig.paper("acrobot")
+    assert (c.num_candidates, c.num_elites, c.iterations, c.apg_steps, c.episodes, c.horizon) == (24, 8, 200, 100, 4, 500)
+    assert (c.init_std, c.lr_start, c.lr_end, c.fitness_window, c.width) == (0.05, 1e-3, 1e-6, 5, 16)
+    assert c.env_steps_per_iteration() == 4_800_000
+    assert ce_apg.CEAPGConfig.paper("double_cartpole").width == 32
+    # the paper's schedule: 10^((-3 (T - i) - 6 i) / T)
+    for i in (0, 50, 200):
+        assert float(c.learning_rate(i)) == pytest.approx(10 ** ((-3 * (200 - i) - 6 * i) / 200), rel=1e-5)
+    m = cem.config("cartpole")
+    assert (m.apg_steps, m.iterations) == (0, 2000)
+    with pytest.raises(ValueError, match="apg_steps"):
+        cem.make_trainer(c)
+
+
+def test_custom_task_must_be_passed():
+    with pytest.raises(ValueError, match="custom"):
+        ce_apg.make_trainer(ce_apg.CEAPGConfig(task="custom"))
+
+
+# --------------------------------------------------------------------------- learning
+def test_cem_solves_a_quadratic():
+    c = jnp.array([1.5, -2.0, 0.3, 4.0, -0.7])
+    mu, best = cem.cem(lambda x: -jnp.sum((x - c) ** 2), jnp.zeros(5), jnp.full(5, 2.0), jax.random.PRNGKey(0),
+                       iterations=60, num_candidates=64, num_elites=8)
+    # the elite spread shrinks geometrically; after 60 iterations the mean sits on the optimum
+    np.testing.assert_allclose(mu, c, atol=1e-4)
+    assert float(best[-1]) > -1e-6
+
+
+def _balance_task():
+    # a 1 kg, 1 m pendulum that starts within 0.3 rad (and 0.3 rad/s) of upright; torque 5 a N m.
+    # Untrained GRU: about 420; zero torque: about 500; a hand-tuned PD controller: 599.8 of 600.
+    return chain_swingup(lg.systems.pendulum(gear=5.0), dt=0.05, horizon=60, noise=0.3, upright=True)
+
+
+def test_apg_improves_pendulum_balance():
+    task = _balance_task()
+    cfg = apg.APGConfig(task="custom", iterations=4, steps_per_iteration=50, episodes=8, learning_rate=1e-2,
+                        width=8, horizon=60, truncation=10)
+    trainer = apg.make_trainer(cfg, task)
+    state = trainer.init(jax.random.PRNGKey(0))
+    before, _ = evaluate(task, *trainer.policy(state), jax.random.PRNGKey(7), 32)
+    for _ in range(cfg.iterations):
+        state, metrics = trainer.update(state)
+    after, bal = evaluate(task, *trainer.policy(state), jax.random.PRNGKey(7), 32)
+    assert float(before.mean()) < 500
+    assert float(after.mean()) > 595  # measured 599.9
+    assert bool(bal.all())
+    assert int(metrics["nonfinite"]) == 0
+
+
+def test_ce_apg_swings_a_pendulum_up():
+    """CE-APG swings a torque-limited pendulum (5 N m against 4.9 N m of gravity at horizontal) up
+    from hanging and balances it in 10 small iterations (8 x 20 x 2 x 100 env steps each)."""
+    task = chain_swingup(lg.systems.pendulum(gear=5.0), dt=0.05, horizon=100)
+    cfg = ce_apg.CEAPGConfig(task="custom", num_candidates=8, num_elites=3, iterations=10, apg_steps=20, episodes=2,
+                             horizon=100, width=8, lr_start=1e-2, lr_end=1e-3, init_std=0.3, truncation=10)
+    trainer = ce_apg.make_trainer(cfg, task)
+    state = trainer.init(jax.random.PRNGKey(0))
+    for _ in range(cfg.iterations):
+        state, metrics = trainer.update(state)
+    ret, bal = evaluate(task, *trainer.policy(state), jax.random.PRNGKey(7), 32)
+    assert float(ret.mean()) > 850  # of 1000; measured 918; a hanging pendulum scores 10 - pi^2 per step (~13)
+    assert bool(bal.all())
+
+
+def test_nonfinite_candidates_get_minus_infinity_and_do_not_poison():
+    # a gear of 1e300 drives velocities to ~1e298 in one step: their squares overflow to inf, then NaN
+    task = chain_swingup(lg.systems.pendulum(gear=1e300), dt=0.05, horizon=5)
+    cfg = ce_apg.CEAPGConfig(task="custom", num_candidates=4, num_elites=2, iterations=1, apg_steps=2, episodes=1,
+                             horizon=5, width=4, fitness_window=1, init_std=0.1)
+    trainer = ce_apg.make_trainer(cfg, task)
+    state, metrics = trainer.update(trainer.init(jax.random.PRNGKey(0)))
+    assert int(metrics["nonfinite"]) == 4
+    assert float(metrics["best_return"]) == -np.inf
+    assert bool(jnp.all(jnp.isfinite(state.mean))) and bool(jnp.all(jnp.isfinite(state.std)))
+
+
+# --------------------------------------------------------------------------- checkpoints and resume
+TINY = ce_apg.CEAPGConfig(task="acrobot", num_candidates=4, num_elites=2, iterations=3, apg_steps=2, episodes=1,
+                          horizon=20, width=4, fitness_window=1, lr_start=1e-2, lr_end=1e-3)
+
+
+@pytest.fixture(scope="module")
+def tiny_trainer():
+    return ce_apg.make_trainer(TINY)
+
+
+def test_checkpoint_round_trip_and_errors(tiny_trainer, tmp_path):
+    cfg = apg.config_to_dict(TINY)
+    state, _ = tiny_trainer.update(tiny_trainer.init(jax.random.PRNGKey(1)))
+    path = tmp_path / "ckpt.eqx"
+    checkpoint.save(path, state, config=cfg, seed=1, history=[{"best_return": 1.0}])
+    loaded, head = checkpoint.load(path, tiny_trainer.init(jax.random.PRNGKey(0)), config=cfg)
+    assert params_equal(loaded, state)
+    assert head["seed"] == 1 and head["version"] == checkpoint.VERSION and head["config"] == cfg
+    assert not [p for p in os.listdir(tmp_path) if p.startswith(".ckpt-")]  # no temp file left behind
+
+    other = dict(cfg, num_elites=3)
+    with pytest.raises(checkpoint.CheckpointError, match="num_elites"):
+        checkpoint.load(path, state, config=other)
+    data = path.read_bytes()
+    (tmp_path / "cut.eqx").write_bytes(data[: len(data) - 40])
+    with pytest.raises(checkpoint.CheckpointError, match="corrupt"):
+        checkpoint.load(tmp_path / "cut.eqx", state)
+    (tmp_path / "junk.eqx").write_bytes(b"\x00\xffnot a checkpoint")
+    with pytest.raises(checkpoint.CheckpointError, match="not a lagrange checkpoint"):
+        checkpoint.load(tmp_path / "junk.eqx", state)
+    head_v2 = json.dumps({"format": checkpoint.FORMAT, "version": 99, "config": cfg}).encode()
+    (tmp_path / "v2.eqx").write_bytes(head_v2 + b"\n" + data.split(b"\n", 1)[1])
+    with pytest.raises(checkpoint.CheckpointError, match="version 99"):
+        checkpoint.load(tmp_path / "v2.eqx", state)
+
+
+def test_resume_equals_uninterrupted(tiny_trainer, tmp_path):
+    key = jax.random.PRNGKey(3)
+    full, hist_full = run(tiny_trainer, key, iterations=3, ckpt_path=str(tmp_path / "a.eqx"), progress=False, seed=3)
+    # "killed" after 1 iteration, then resumed from its checkpoint
+    run(tiny_trainer, key, iterations=1, ckpt_path=str(tmp_path / "b.eqx"), progress=False, seed=3)
+    resumed, hist = run(tiny_trainer, key, iterations=3, ckpt_path=str(tmp_path / "b.eqx"), resume=True,
+                        progress=False, seed=3)
+    assert int(resumed.iteration) == 3 and len(hist) == 3
+    assert params_equal(resumed, full)
+    assert [h["best_return"] for h in hist] == [h["best_return"] for h in hist_full]
+    assert not params_equal(resumed.mean, tiny_trainer.init(key).mean)  # it did train
+    with pytest.raises(checkpoint.CheckpointError, match="seed"):
+        run(tiny_trainer, key, iterations=3, ckpt_path=str(tmp_path / "b.eqx"), resume=True, progress=False, seed=4)
+
+
+def test_make_train_is_one_jittable_function(tiny_trainer):
+    """``make_train(config)(key)`` (lax.scan over iterations) reaches the host loop's state."""
+    state, metrics = jax.jit(ce_apg.make_train(TINY))(jax.random.PRNGKey(5))
+    host = tiny_trainer.init(jax.random.PRNGKey(5))
+    for _ in range(TINY.iterations):
+        host, _ = tiny_trainer.update(host)
+    assert metrics["best_return"].shape == (TINY.iterations,)
+    for a, b in zip(jax.tree_util.tree_leaves(state), jax.tree_util.tree_leaves(host)):
+        np.testing.assert_allclose(np.asarray(a, float), np.asarray(b, float), rtol=1e-9, atol=1e-12)
+
+
+_SHARDED = textwrap.dedent(
+    """
+    import json, sys, jax
+    jax.config.update("jax_enable_x64", True)
+    sys.path.insert(0, {root!r})
+    from optim import ce_apg
+    cfg = ce_apg.CEAPGConfig(task="acrobot", num_candidates=6, num_elites=2, iterations=2, apg_steps=2,
+                             episodes=1, horizon=20, width=4, fitness_window=1, lr_start=1e-2, lr_end=1e-3)
+    tr = ce_apg.make_trainer(cfg)
+    s = tr.init(jax.random.PRNGKey(11))
+    for _ in range(2):
+        s, m = tr.update(s)
+    print(json.dumps({{"devices": len(jax.devices()), "mean": s.mean.tolist(), "std": s.std.tolist(),
+                      "best": s.best.tolist(), "fitness": float(m["best_return"])}}))
+    """
+)
+
+
+def test_sharded_equals_single_device():
+    """6 candidates on 4 forced host devices (padded to 8) give the single-device result."""
+    outs = []
+    for flags in ("--xla_force_host_platform_device_count=4", ""):
+        env = dict(os.environ, XLA_FLAGS=flags, JAX_PLATFORMS="cpu")
+        proc = subprocess.run([sys.executable, "-c", _SHARDED.format(root=ROOT)], capture_output=True, text=True,
+                              env=env, timeout=600)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        outs.append(json.loads(proc.stdout.strip().splitlines()[-1]))
+    four, one = outs
+    assert (four["devices"], one["devices"]) == (4, 1)
+    # same computation per candidate; only XLA's fusion may differ: float64 round-off
+    for k in ("mean", "std", "best"):
+        np.testing.assert_allclose(four[k], one[k], rtol=1e-9, atol=1e-12)
+    assert four["fitness"] == pytest.approx(one["fitness"], rel=1e-9)
+
+
+def test_papg_keeps_the_best_run():
+    cfg = papg.PAPGConfig(task="acrobot", num_runs=3, iterations=1, apg_steps=2, episodes=1, horizon=20, width=4,
+                          fitness_window=1)
+    trainer = papg.make_trainer(cfg)
+    state, metrics = trainer.update(trainer.init(jax.random.PRNGKey(0)))
+    i = int(jnp.argmax(state.fitness))
+    assert float(metrics["best_return"]) == float(state.fitness[i])
+    policy, _ = trainer.policy(state)
+    flat, _ = apg.flatten_policy(policy)
+    np.testing.assert_array_equal(flat, state.params[i])
+    assert len(set(np.asarray(state.fitness).tolist())) == 3  # independent runs
