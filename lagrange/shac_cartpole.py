@@ -50,7 +50,7 @@ POLE_INERTIA = 2.5 * (1.0**2 + 0.05**2) / 12.0
 
 
 class SHACCartpole(eqx.Module):
-    """The SHAC authors' cartpole swing-up (see the module docstring for the table); build with :func:`shac_cartpole`."""
+    """The SHAC authors' cartpole swing-up (the module docstring has the table); build with :func:`shac_cartpole`."""
 
     chain: Chain
     dt: float = eqx.field(static=True, default=1.0 / 60.0)
