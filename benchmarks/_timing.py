@@ -1,0 +1,42 @@
+"""Shared timing helper for the benchmarks: compile once, warm up, median of repeats."""
+
+from __future__ import annotations
+
+import statistics
+import time
+
+import jax
+
+
+def block(x):
+    """Wait for every array in a pytree."""
+    return jax.block_until_ready(x)
+
+
+def compile_time(fn, *args) -> float:
+    """Seconds for the first call of a jitted ``fn`` (trace + compile + one run)."""
+    t = time.perf_counter()
+    block(fn(*args))
+    return time.perf_counter() - t
+
+
+def median_time(fn, *args, repeats: int = 5, min_time: float = 0.05, warmup: int = 1) -> float:
+    """Median seconds per call of ``fn(*args)`` after ``warmup`` calls.
+
+    Each repeat runs the call often enough to last at least ``min_time`` seconds, so short
+    calls are not dominated by timer resolution.
+    """
+    for _ in range(warmup):
+        block(fn(*args))
+    t = time.perf_counter()
+    block(fn(*args))
+    one = max(time.perf_counter() - t, 1e-7)
+    number = max(1, int(min_time / one))
+    samples = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        for _ in range(number):
+            out = fn(*args)
+        block(out)
+        samples.append((time.perf_counter() - t) / number)
+    return statistics.median(samples)

@@ -1,0 +1,298 @@
+"""Numerical stability sweeps: energy drift, random stress states, float32 vs float64, gradients.
+
+    python -m benchmarks.stability            # the full sweep (several minutes on 2 cores)
+    python -m benchmarks.stability --quick    # reduced sweep (~1-2 minutes)
+
+1. Energy drift of the conservative acrobot and double pendulum over 1e5 steps for each solver.
+2. 10,000 random initial states (speeds up to 50 rad/s, mass ratios up to 1e3 within a chain,
+   chains of 2 to 20 links), RK4 at dt = 1e-3 for 0.5 s: non-finite trajectories counted,
+   whether ``simulate(check=True)`` would report each (its final state is non-finite), the
+   energy error before the blow-up, and how many survive with 8 substeps.
+3. float32 against float64: the time at which trajectories part (by 0.1 rad) per system, beside
+   two float64 runs whose initial angles differ by 1e-7 rad.
+4. The gradient norm of a final-state loss with respect to the controls against the horizon
+   for the acrobot, float32 and float64 (plot).
+
+Writes ``benchmarks/results/stability.json`` and ``benchmarks/results/stability_gradients.png``.
+Energy errors are relative to ``E0 - V(q = 0)``, the energy above the chain hanging at rest.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import time
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+import equinox as eqx  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+
+import lagrange as lg  # noqa: E402
+
+RESULTS = pathlib.Path(__file__).resolve().parent / "results"
+
+
+def _rollout(chain, q0, qd0, dt, solver, steps, substeps=1):
+    controls = None if chain.m == 0 else jnp.zeros((steps, chain.m), jnp.asarray(q0).dtype)
+    return lg.simulate(chain, q0, qd0, controls, dt, solver, substeps,
+                       steps=steps if chain.m == 0 else None, check=False)
+
+
+# ------------------------------------------------------------------------------ energy drift
+
+
+def energy_drift(steps: int):
+    systems = {"acrobot": lg.systems.acrobot(), "double_pendulum": lg.systems.n_link_pendulum(2)}
+    configs = [
+        ("Euler", lg.Euler(), 1e-3), ("SemiImplicitEuler", lg.SemiImplicitEuler(), 1e-3),
+        ("SemiImplicitEuler", lg.SemiImplicitEuler(), 1e-4),
+        ("RK4", lg.RK4(), 1e-3), ("RK4", lg.RK4(), 5e-4), ("Tsit5", lg.Tsit5(), 1e-3),
+        ("Dopri5", lg.Dopri5(), 1e-3), ("Dopri8", lg.Dopri8(), 1e-3), ("Dopri8", lg.Dopri8(), 1e-2),
+    ]
+    q0, qd0 = jnp.array([2.0, 1.0]), jnp.zeros(2)
+    rows = []
+    for sname, chain in systems.items():
+        for name, solver, dt in configs:
+            @jax.jit
+            def run(q0, qd0):
+                tr = _rollout(chain, q0, qd0, dt, solver, steps)
+                kin, pot = lg.energy(chain, tr.q, tr.qd)
+                e = kin + pot
+                rest = lg.energy(chain, jnp.zeros(2), jnp.zeros(2))[1]
+                return (e - e[0]) / (e[0] - rest)
+
+            t = time.perf_counter()
+            err = np.abs(np.asarray(run(q0, qd0)))
+            wall = time.perf_counter() - t
+            h = steps // 2
+            rows.append(dict(system=sname, solver=name, dt=dt, steps=steps, horizon_s=steps * dt,
+                             max=float(err.max()), first_half=float(err[: h + 1].max()),
+                             second_half=float(err[h:].max()), final=float(err[-1]), wall_s=wall))
+    return rows
+
+
+# ------------------------------------------------------------------------------ stress batch
+
+
+def _batch(n, size, rng):
+    mass = 10.0 ** rng.uniform(-1.5, 1.5, (size, n))
+    length = 10.0 ** rng.uniform(-1.0, 0.0, (size, n))
+    q = rng.uniform(-np.pi, np.pi, (size, n))
+    qd = rng.uniform(-50.0, 50.0, (size, n))
+    return tuple(jnp.asarray(x) for x in (mass, length, q, qd))
+
+
+def _stress_fn(n, dt, steps, substeps):
+    base = lg.systems.n_link_pendulum(n)
+
+    def one(mass, length, q, qd):
+        chain = eqx.tree_at(lambda c: (c.mass, c.length, c.com, c.inertia), base,
+                            (mass, length, length / 2, mass * length**2 / 12))
+        tr = _rollout(chain, q, qd, dt, lg.RK4(), steps, substeps)
+        finite = jnp.all(jnp.isfinite(tr.q), -1) & jnp.all(jnp.isfinite(tr.qd), -1)
+        kin, pot = lg.energy(chain, tr.q, tr.qd)
+        rest = lg.energy(chain, jnp.zeros(n), jnp.zeros(n))[1]
+        rel = jnp.abs(kin + pot - kin[0] - pot[0]) / (kin[0] + pot[0] - rest)
+        qdd0 = lg.forward_dynamics(chain, q, qd)
+        peak = jnp.max(jnp.where(finite[:, None], jnp.abs(tr.qd), 0.0))
+        return (jnp.all(finite), finite[-1], jnp.max(jnp.where(finite, rel, 0.0)),
+                jnp.all(jnp.isfinite(qdd0)), peak * dt / substeps)
+
+    return jax.jit(jax.vmap(one))
+
+
+def stress(total: int, sizes, dt=1e-3, steps=500, seed=0, rerun_max=200):
+    rng = np.random.default_rng(seed)
+    per = total // len(sizes)
+    rows = []
+    for n in sizes:
+        mass, length, q, qd = _batch(n, per, rng)
+        t = time.perf_counter()
+        ok, final_ok, rel, fd_ok, wh = (np.asarray(x) for x in _stress_fn(n, dt, steps, 1)(mass, length, q, qd))
+        wall = time.perf_counter() - t
+        bad = np.flatnonzero(~ok)
+        good = ok & (rel <= 1e-2)
+        row = dict(n=n, states=per, nonfinite=int(bad.size),
+                   unreported=int(np.sum(~ok & final_ok)),  # non-finite somewhere, finite at the end
+                   fd_nonfinite_at_start=int(np.sum(~fd_ok)),
+                   min_energy_error_before_blowup=float(rel[bad].min()) if bad.size else None,
+                   finite_energy_error_gt_1e_2=int(np.sum(ok & (rel > 1e-2))),
+                   accurate=int(good.sum()),
+                   median_peak_speed_x_h_accurate=float(np.median(wh[good])) if good.any() else None,
+                   median_peak_speed_x_h_inaccurate=float(np.median(wh[ok & ~good])) if (ok & ~good).any() else None,
+                   wall_s=wall)
+        if bad.size:
+            sub, bad = 8, bad[:rerun_max]  # re-run (at most rerun_max of) the failures with dt / 8
+            ok8, _, rel8, _, _ = (np.asarray(x) for x in _stress_fn(n, dt, steps, sub)(
+                mass[bad], length[bad], q[bad], qd[bad]))
+            row["rerun_with_8_substeps"] = int(bad.size)
+            row["nonfinite_with_8_substeps"] = int((~ok8).sum())
+            row["of_those_energy_error_le_1e_2"] = int(np.sum(ok8 & (rel8 <= 1e-2)))
+        rows.append(row)
+        print(f"  stress n={n:2d}: {row}", flush=True)
+    return rows
+
+
+# ------------------------------------------------------------------------------ float32 vs float64
+
+
+def _to_f32(chain):
+    return jax.tree.map(lambda x: x.astype(jnp.float32) if eqx.is_array(x) else x, chain)
+
+
+def parting(dt=1e-3, steps=30_000, tol=0.1):
+    cases = {
+        "pendulum": (lg.systems.pendulum(), [2.0]),
+        "cartpole": (lg.systems.cartpole(), [0.0, 2.0]),
+        "double_cartpole": (lg.systems.double_cartpole(), [0.0, 2.0, 1.0]),
+        "acrobot": (lg.systems.acrobot(), [2.0, 1.0]),
+        "double_pendulum": (lg.systems.n_link_pendulum(2), [2.0, 1.0]),
+        "double_pendulum_small": (lg.systems.n_link_pendulum(2), [0.2, 0.1]),
+        "5_link_pendulum": (lg.systems.n_link_pendulum(5), [2.0, 1.0, 0.5, 0.2, 0.1]),
+    }
+    rows = []
+    for name, (chain, q0) in cases.items():
+        q0 = jnp.asarray(q0, jnp.float64)
+        z = jnp.zeros_like(q0)
+        run = jax.jit(lambda c, q, qd: _rollout(c, q, qd, dt, lg.RK4(), steps).q)
+        ref = np.asarray(run(chain, q0, z))
+
+        def part(x):
+            gap = np.max(np.abs(np.asarray(x, np.float64) - ref), axis=1)
+            i = int(np.argmax(gap > tol))
+            return (i * dt if gap[i] > tol else None), float(gap[-1])
+
+        t32, g32 = part(run(_to_f32(chain), q0.astype(jnp.float32), z.astype(jnp.float32)))
+        tp, gp = part(run(chain, q0 + 1e-7, z))
+        rows.append(dict(system=name, q0=np.asarray(q0).tolist(), horizon_s=steps * dt,
+                         float32_parting_s=t32, float32_final_gap=g32,
+                         perturbed_1e_7_parting_s=tp, perturbed_final_gap=gp))
+        print(f"  parting {name}: float32 {t32} s, 1e-7 perturbation {tp} s", flush=True)
+    return rows
+
+
+# ------------------------------------------------------------------------------ gradient growth
+
+
+def gradient_growth(horizons, dt=0.01):
+    chain64 = lg.systems.acrobot()
+    rows = []
+    for dtype in (jnp.float64, jnp.float32):
+        chain = chain64 if dtype == jnp.float64 else _to_f32(chain64)
+        q0 = jnp.array([2.0, 1.0], dtype)
+        qd0 = jnp.zeros(2, dtype)
+
+        def loss(u):
+            tr = lg.simulate(chain, q0, qd0, u, dt, lg.RK4(), check=False)
+            return jnp.sum(tr.q[-1] ** 2) + jnp.sum(tr.qd[-1] ** 2)
+
+        g = jax.jit(jax.grad(loss))
+        for T in horizons:
+            grad = np.asarray(g(jnp.zeros((T, 1), dtype)), np.float64)
+            rows.append(dict(dtype=jnp.dtype(dtype).name, steps=T, horizon_s=T * dt,
+                             grad_norm=float(np.linalg.norm(grad)), finite=bool(np.all(np.isfinite(grad))),
+                             _grad=grad))
+    by = {(r["dtype"], r["steps"]): r.pop("_grad") for r in rows}
+    for r in rows:
+        if r["dtype"] == "float32":
+            a, b = by[("float32", r["steps"])], by[("float64", r["steps"])]
+            r["rel_diff_vs_float64"] = float(np.linalg.norm(a - b) / np.linalg.norm(b))
+    return rows
+
+
+def plot_gradients(rows, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 2, figsize=(9, 3.4))
+    for dtype, style in (("float64", "o-"), ("float32", "s--")):
+        rs = [r for r in rows if r["dtype"] == dtype]
+        ax[0].semilogy([r["horizon_s"] for r in rs], [r["grad_norm"] for r in rs], style, label=dtype)
+    rs = [r for r in rows if r["dtype"] == "float32"]
+    ax[1].semilogy([r["horizon_s"] for r in rs], [max(r["rel_diff_vs_float64"], 1e-17) for r in rs], "s-")
+    ax[0].set(xlabel="horizon [s] (dt = 0.01, RK4)", ylabel="||d loss / d controls||",
+              title="acrobot: gradient norm vs horizon")
+    ax[1].set(xlabel="horizon [s]", ylabel="relative difference", title="float32 gradient vs float64")
+    ax[0].legend()
+    for a in ax:
+        a.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def _table(rows, keys):
+    lines = ["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
+    for r in rows:
+        cells = []
+        for k in keys:
+            v = r.get(k)
+            cells.append(f"{v:.3g}" if isinstance(v, float) else str(v))
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="reduced sweep")
+    ap.add_argument("--stress-only", nargs="+", type=int, metavar="N",
+                    help="only the stress batch for these chain sizes, appended to the existing JSON")
+    ap.add_argument("--states", type=int, default=None, help="random states per size with --stress-only")
+    ap.add_argument("--rerun-max", type=int, default=200, help="failures re-run with 8 substeps, at most")
+    args = ap.parse_args(argv)
+    if args.stress_only:
+        path = RESULTS / f"stability{'_quick' if args.quick else ''}.json"
+        out = json.loads(path.read_text()) if path.exists() else {}
+        out.setdefault("stress", [])
+        for n in args.stress_only:
+            out["stress"] = [r for r in out["stress"] if r["n"] != n]
+            out["stress"] += stress(args.states or 1666, (n,), seed=n, rerun_max=args.rerun_max)
+            path.write_text(json.dumps(out, indent=1))
+        return
+    RESULTS.mkdir(exist_ok=True)
+    t0 = time.perf_counter()
+    out = {"quick": args.quick, "device": str(jax.devices()[0]), "float": "float64 unless stated"}
+
+    steps = 20_000 if args.quick else 100_000
+    print(f"energy drift over {steps} steps", flush=True)
+    out["energy_drift"] = energy_drift(steps)
+    print(_table(out["energy_drift"], ["system", "solver", "dt", "horizon_s", "first_half", "second_half", "max"]))
+
+    print("float32 vs float64 parting times", flush=True)
+    out["parting"] = parting(steps=10_000 if args.quick else 30_000)
+    print(_table(out["parting"], ["system", "float32_parting_s", "perturbed_1e_7_parting_s", "float32_final_gap"]))
+
+    horizons = [10, 30, 100, 300, 1000] if args.quick else [10, 20, 50, 100, 200, 500, 1000, 2000, 5000]
+    print("gradient norm vs horizon (acrobot)", flush=True)
+    out["gradient_growth"] = gradient_growth(horizons)
+    print(_table(out["gradient_growth"], ["dtype", "horizon_s", "grad_norm", "rel_diff_vs_float64"]))
+    suffix = "_quick" if args.quick else ""
+    plot_gradients(out["gradient_growth"], RESULTS / f"stability_gradients{suffix}.png")
+    (RESULTS / f"stability{suffix}.json").write_text(json.dumps(out, indent=1))
+
+    # the stress batch last: compiling 12- and 20-link chains is the slow part
+    sizes = (2, 3, 5, 8) if args.quick else (2, 3, 5, 8, 12, 20)
+    total = 1000 if args.quick else 10_000
+    print(f"stress: {total} random states, n in {sizes}", flush=True)
+    out["stress"] = []
+    for n in sizes:
+        out["stress"] += stress(total // len(sizes), (n,), seed=n)
+        (RESULTS / f"stability{suffix}.json").write_text(json.dumps(out, indent=1))
+    print(_table(out["stress"], ["n", "states", "nonfinite", "unreported", "fd_nonfinite_at_start",
+                                 "min_energy_error_before_blowup", "finite_energy_error_gt_1e_2",
+                                 "rerun_with_8_substeps", "nonfinite_with_8_substeps"]))
+    out["total_wall_s"] = time.perf_counter() - t0
+    (RESULTS / f"stability{suffix}.json").write_text(json.dumps(out, indent=1))
+    print(f"wrote {RESULTS}/stability{suffix}.json and stability_gradients{suffix}.png "
+          f"({out['total_wall_s']:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()
