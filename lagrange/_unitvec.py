@@ -246,6 +246,7 @@ def _acc(d: dict, key, value):
 
 
 def mass_entries(chain: Chain, geom: Geometry) -> list[list]:
+    """Lower triangle of the translational part of M, ``sum_i m_i J_i^T J_i``."""
     n = chain.n
     M = [[0.0] * n for _ in range(n)]
     for i in range(n):
@@ -256,12 +257,6 @@ def mass_entries(chain: Chain, geom: Geometry) -> list[list]:
         for a, j in enumerate(keys):
             for k in keys[: a + 1]:
                 M[max(j, k)][min(j, k)] = s.add(M[max(j, k)][min(j, k)], geom.dot(cols[j], cols[k], m))
-        rev = geom.revs[geom.ang[i]]
-        for a, j in enumerate(rev):
-            for k in rev[: a + 1]:
-                M[max(j, k)][min(j, k)] = s.add(M[max(j, k)][min(j, k)], chain.inertia[i])
-    for j in chain.armatured:
-        M[j][j] = s.add(M[j][j], chain.armature[j])
     return M
 
 

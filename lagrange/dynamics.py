@@ -37,7 +37,7 @@ def _check(chain: Chain, name: str, x, size: int):
 
 
 def _mass_entries(chain: Chain, f) -> list[list]:
-    """Lower triangle of M as nested lists of scalars."""
+    """Lower triangle of the translational part of M, ``sum_i m_i J_i^T J_i``, from jets."""
     n = chain.n
     M = [[0.0] * n for _ in range(n)]
     for i, (cx, cz) in enumerate(f.com):
@@ -50,10 +50,18 @@ def _mass_entries(chain: Chain, f) -> list[list]:
                     s.mul(cx.g.get(j, 0.0), cx.g.get(k, 0.0)), s.mul(cz.g.get(j, 0.0), cz.g.get(k, 0.0))
                 )
                 M[jj][kk] = s.add(M[jj][kk], s.mul(m, dot))
-        rev = f.revolute_before[i]
-        for a, j in enumerate(rev):
-            for k in rev[: a + 1]:
-                M[max(j, k)][min(j, k)] = s.add(M[max(j, k)][min(j, k)], chain.inertia[i])
+    return M
+
+
+def _add_rotational(chain: Chain, M: list[list]) -> list[list]:
+    """Add ``sum_i I_i s_i^T s_i + diag(armature)`` (s_i: the revolute joints up to link i) to M."""
+    revolute: list[int] = []
+    for i, joint in enumerate(chain.joints):
+        if joint == "revolute":
+            revolute.append(i)
+        for a, j in enumerate(revolute):
+            for k in revolute[: a + 1]:
+                M[j][k] = s.add(M[j][k], chain.inertia[i])
     for j in chain.armatured:
         M[j][j] = s.add(M[j][j], chain.armature[j])
     return M
@@ -85,11 +93,11 @@ def _terms(chain: Chain, q, qd, *, mass: bool, velocity: bool, gravity: bool):
     if chain.n <= UNITVEC_MAX:
         absolute = _unitvec.plan(chain, mass=mass, velocity=velocity, gravity=gravity)
         geom = _unitvec.Geometry(chain, q, qd if velocity else None, absolute)
-        M = _unitvec.mass_entries(chain, geom) if mass else None
+        M = _add_rotational(chain, _unitvec.mass_entries(chain, geom)) if mass else None
         f = _unitvec.generalized_forces(chain, geom, velocity=velocity, gravity=gravity) if (velocity or gravity) else None
     else:
         fr = frames(chain, q, qd if velocity else None)
-        M = _mass_entries(chain, fr) if mass else None
+        M = _add_rotational(chain, _mass_entries(chain, fr)) if mass else None
         f = _generalized(chain, fr, None, velocity=velocity, gravity=gravity) if (velocity or gravity) else None
     if f is not None and velocity and chain.damping is not None:
         for j in chain.damped:
