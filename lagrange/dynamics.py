@@ -67,7 +67,7 @@ def _add_rotational(chain: Chain, M: list[list]) -> list[list]:
     return M
 
 
-def _generalized(chain: Chain, f, qd, *, velocity: bool, gravity: bool) -> list:
+def _generalized(chain: Chain, f, *, velocity: bool, gravity: bool) -> list:
     """sum_i J_i^T F_i for the force F_i = m_i (a_i + g e_z) on each centre of mass."""
     n = chain.n
     out = [0.0] * n
@@ -98,7 +98,7 @@ def _terms(chain: Chain, q, qd, *, mass: bool, velocity: bool, gravity: bool):
     else:
         fr = frames(chain, q, qd if velocity else None)
         M = _add_rotational(chain, _mass_entries(chain, fr)) if mass else None
-        f = _generalized(chain, fr, None, velocity=velocity, gravity=gravity) if (velocity or gravity) else None
+        f = _generalized(chain, fr, velocity=velocity, gravity=gravity) if (velocity or gravity) else None
     if f is not None and velocity and chain.damping is not None:
         for j in chain.damped:
             f[j] = s.add(f[j], s.mul(chain.damping[j], qd[..., j]))

@@ -17,7 +17,6 @@ diffrax ``adjoint`` (e.g. ``diffrax.RecursiveCheckpointAdjoint()``,
 from __future__ import annotations
 
 import math
-from typing import Callable
 
 import diffrax
 import equinox as eqx
