@@ -13,7 +13,8 @@ give the centre-of-mass Jacobian columns ``J_ij`` and velocity-product accelerat
 links, with ``|u|^2 = 1`` and ``d.e = 0`` folded before anything is traced. For a short chain
 this is exactly the program a person writes by hand for ``M`` and ``C qd + T`` (the acrobot
 needs sin/cos of q2, sin q1 and sin(q1 + q2), nothing else). It needs sin/cos of every pair of
-link angles, O(n^2) transcendentals, so long chains use the jets of :mod:`lagrange._jet`.
+link angles, O(n^2) transcendentals, so long chains use :mod:`lagrange.recursive` (see
+``lagrange.dynamics.RECURSIVE_MIN``).
 """
 
 from __future__ import annotations

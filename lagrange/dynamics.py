@@ -9,10 +9,14 @@ The kinetic energy of a planar chain is ``T = 1/2 sum_i (m_i |J_i qd|^2 + I_i (s
   mass, pulled back to the joints; the planar rotation terms have none),
 - ``T(q) = dV/dq = sum_i m_i g J_i^T e_z``.
 
-Both ``J_i`` and ``(dJ_i/dt) qd`` are computed by sparse second-order forward-mode autodiff
-of the forward kinematics (:mod:`lagrange._jet`), simplified at trace time, so the compiled
+Both ``J_i`` and ``(dJ_i/dt) qd`` are differentiated at trace time from the forward kinematics
+(:mod:`lagrange._unitvec`; the sparse jets of :mod:`lagrange._jet` for longer chains), simplified at trace time, so the compiled
 program contains only the terms the chain has. :mod:`lagrange.euler_lagrange` derives the same
 quantities literally (Hessians of the Lagrangian) and serves as the check.
+
+Chains of ``RECURSIVE_MIN`` or more links use the recursive algorithms of
+:mod:`lagrange.recursive` instead (ABA, RNEA, CRBA as scans over the links), whose work grows
+like n rather than n^3.
 
 All functions are pure, accept leading batch dimensions on ``q``/``qd``/``u`` and are safe
 under ``jit``, ``vmap`` and ``grad``.
@@ -24,6 +28,7 @@ import jax.numpy as jnp
 
 from lagrange import _scalar as s
 from lagrange import _unitvec
+from lagrange import recursive
 from lagrange._linalg import solve_spd, to_array
 from lagrange.chain import Chain
 from lagrange.kinematics import frames
@@ -84,7 +89,9 @@ def _generalized(chain: Chain, f, *, velocity: bool, gravity: bool) -> list:
 UNITVEC_MAX = 4
 """Chains of up to this many links use the relative-angle formulation of :mod:`lagrange._unitvec`
 (fewest operations for short chains); longer ones use the jets of :mod:`lagrange._jet`
-(O(n) transcendentals). Measured on n-link pendulums, compiled arithmetic ops relative-angle /
+(O(n) transcendentals). With the default ``RECURSIVE_MIN`` the jets serve only chains of
+``RECURSIVE_MIN`` or more links when that switch is raised (the recursive path's tests compare
+against them). Measured on n-link pendulums, compiled arithmetic ops relative-angle /
 jets: n=2 38/68, n=3 131/160, n=4 458/494, n=5 1110/950, n=6 2390/1648."""
 
 
@@ -105,6 +112,31 @@ def _terms(chain: Chain, q, qd, *, mass: bool, velocity: bool, gravity: bool):
     return M, f
 
 
+RECURSIVE_MIN = 5
+"""Chains of at least this many links use the recursive algorithms of :mod:`lagrange.recursive`
+(ABA for ``forward_dynamics``, CRBA for ``mass_matrix``, RNEA for the forces,
+``inverse_dynamics`` and ``energy``): O(n) work (O(n^2) for M) and a compiled program whose size
+does not depend on n. Shorter chains keep the unrolled derivations above.
+
+Measured on n-link pendulums (every joint actuated), semi-implicit Euler rollouts of 20 steps,
+float64, one CPU core of a busy 2-core machine, microseconds per env-step, unrolled / recursive:
+
+- n = 4, batch 1: forward 1.4 / 3.7-5.2, gradient 5.2 / 19; batch 1024: forward 0.74 / 0.42,
+  gradient 2.9 / 1.0-2.0.
+- n = 5, batch 1: forward 1.8 / 3.7-4.2, gradient 452 / 10-17; batch 1024: forward 1.6 / 0.6-0.7,
+  gradient 814 / 1.6-2.7.
+- n = 6, batch 1: forward 4.4 / ~5, gradient 4500 / 17; batch 1024: gradient -- / 3.2.
+
+The unrolled path's reverse mode breaks down from n = 5 (the jets of :mod:`lagrange._jet`; its
+gradient also takes minutes to compile from n = 7), while at n <= 4 (the relative-angle
+formulation) it is the faster choice at batch 1, where each of the recursive path's scans pays a
+per-link loop overhead of ~0.1-0.5 us. Hence 5."""
+
+
+def _recursive(chain: Chain) -> bool:
+    return chain.n >= RECURSIVE_MIN
+
+
 def _stack(xs, like):
     return jnp.stack([s.as_array(x, like) for x in xs], axis=-1)
 
@@ -112,6 +144,8 @@ def _stack(xs, like):
 def mass_matrix(chain: Chain, q) -> jnp.ndarray:
     """Mass matrix ``M(q)``, shape ``(..., n, n)``, symmetric positive definite."""
     _check(chain, "q", q, chain.n)
+    if _recursive(chain):
+        return recursive.mass_matrix(chain, q)
     M, _ = _terms(chain, q, None, mass=True, velocity=False, gravity=False)
     return to_array(M, q[..., 0], symmetric=True)
 
@@ -120,6 +154,8 @@ def bias_forces(chain: Chain, q, qd) -> jnp.ndarray:
     """``C(q, qd) qd + T(q) + D qd``, shape ``(..., n)``: what the joints must supply at ``qdd = 0``."""
     _check(chain, "q", q, chain.n)
     _check(chain, "qd", qd, chain.n)
+    if _recursive(chain):
+        return recursive.bias_forces(chain, q, qd)
     _, f = _terms(chain, q, qd, mass=False, velocity=True, gravity=True)
     return _stack(f, q[..., 0])
 
@@ -127,6 +163,8 @@ def bias_forces(chain: Chain, q, qd) -> jnp.ndarray:
 def gravity_forces(chain: Chain, q) -> jnp.ndarray:
     """``T(q) = dV/dq``, shape ``(..., n)``."""
     _check(chain, "q", q, chain.n)
+    if _recursive(chain):
+        return recursive.gravity_forces(chain, q)
     _, f = _terms(chain, q, None, mass=False, velocity=False, gravity=True)
     return _stack(f, q[..., 0])
 
@@ -160,6 +198,10 @@ def _forward(chain: Chain, q, qd, u=None, implicit_damping_dt=None) -> jnp.ndarr
     """``forward_dynamics``; with ``implicit_damping_dt = h`` it solves with ``M + h diag(damping)``."""
     _check(chain, "q", q, chain.n)
     _check(chain, "qd", qd, chain.n)
+    if _recursive(chain):
+        if u is not None:
+            _check(chain, "u", u, chain.m)
+        return recursive.forward_dynamics(chain, q, qd, u, implicit_damping_dt=implicit_damping_dt)
     M, bias = _terms(chain, q, qd, mass=True, velocity=True, gravity=True)
     tau = _actuation(chain, u) if u is not None else [0.0] * chain.n
     rhs = [s.sub(t, b) for t, b in zip(tau, bias)]
@@ -174,6 +216,10 @@ def _forward(chain: Chain, q, qd, u=None, implicit_damping_dt=None) -> jnp.ndarr
 def inverse_dynamics(chain: Chain, q, qd, qdd) -> jnp.ndarray:
     """Generalized forces ``M qdd + C qd + T + D qd`` that produce ``qdd``, shape ``(..., n)``."""
     _check(chain, "qdd", qdd, chain.n)
+    if _recursive(chain):
+        _check(chain, "q", q, chain.n)
+        _check(chain, "qd", qd, chain.n)
+        return recursive.inverse_dynamics(chain, q, qd, qdd)
     return jnp.einsum("...ij,...j->...i", mass_matrix(chain, q), qdd) + bias_forces(chain, q, qd)
 
 
@@ -181,6 +227,8 @@ def energy(chain: Chain, q, qd) -> tuple[jnp.ndarray, jnp.ndarray]:
     """``(kinetic, potential)`` energy [J]; potential is zero with the chain's origin at z = 0."""
     _check(chain, "q", q, chain.n)
     _check(chain, "qd", qd, chain.n)
+    if _recursive(chain):
+        return recursive.energy(chain, q, qd)
     f = frames(chain, q, qd)
     like = q[..., 0]
     kin = 0.0

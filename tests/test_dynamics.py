@@ -150,7 +150,7 @@ def random_chain(rng, n, damped=0.5):
     return Chain(links, gravity=gravity)
 
 
-SIZES = (1, 2, 3, 4, 7)  # 1-6 links take the relative-angle path, 7 the jets; n = 8 costs 17 s CPU to compile
+SIZES = (1, 2, 3, 4, 7)  # 1-4 links take the relative-angle path, 7 the recursive one (lagrange.recursive)
 
 
 @functools.lru_cache(maxsize=None)
