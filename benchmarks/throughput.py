@@ -2,6 +2,7 @@
 
     python -m benchmarks.throughput            # full sweep
     python -m benchmarks.throughput --quick    # reduced sweep
+    python -m benchmarks.throughput --scaling-only   # only the n-link scaling sweep
 
 The acrobot (``lagrange.systems.acrobot()``), float64 on the CPU, dt = 0.01, rollouts of
 ``STEPS`` control steps from random states under random controls, batch 1, 64, 1024, 4096.
@@ -17,10 +18,14 @@ The acrobot (``lagrange.systems.acrobot()``), float64 on the CPU, dt = 0.01, rol
   dynamics evaluation, not per env-step of an integrator.
 - compile: seconds for the first call (trace + compile + run) of the batch-1024 forward and
   gradient functions.
-- scaling: n-link pendulums, n = 2 ... 32, semi-implicit Euler at batch 1024: lagrange and MuJoCo C
-  per env-step, Pinocchio ABA per call.
+- scaling: n-link pendulums, n = 2 ... 32, semi-implicit Euler at batch 1024, rollouts of 20 steps:
+  lagrange forward and gradient and MuJoCo C per env-step, Pinocchio ABA (and its derivatives)
+  per call, each the minimum over 5 timed repeats (robust on a shared machine); the first calls'
+  wall and CPU seconds (CPU time is the cost of compiling on a busy
+  machine); the exponent of a least-squares fit ``t ~ n^p`` over n >= 8 (the recursive path).
 
-Writes ``benchmarks/results/throughput[_quick].json`` and ``throughput_scaling[_quick].png``.
+Writes ``benchmarks/results/throughput[_quick].json`` and ``throughput_scaling[_quick].png``;
+``--scaling-only`` writes ``throughput_scaling[_quick].json`` and the same PNG.
 """
 
 from __future__ import annotations
@@ -161,7 +166,7 @@ def pinocchio_chain(chain):
     return model
 
 
-def pinocchio_times(model, n, repeats=3, calls=2000):
+def pinocchio_times(model, n, repeats=3, calls=2000, best=False):
     import pinocchio as pin
 
     data = model.createData()
@@ -176,8 +181,8 @@ def pinocchio_times(model, n, repeats=3, calls=2000):
         for _ in range(calls // 4):
             pin.computeABADerivatives(model, data, q, v, tau)
 
-    return (median_time(aba, repeats=repeats, min_time=0.0) / calls,
-            median_time(aba_d, repeats=repeats, min_time=0.0) / (calls // 4))
+    return (median_time(aba, repeats=repeats, min_time=0.0, best=best) / calls,
+            median_time(aba_d, repeats=repeats, min_time=0.0, best=best) / (calls // 4))
 
 
 # ------------------------------------------------------------------------------ measurement
@@ -189,11 +194,12 @@ def _inputs(n, m, B, T=STEPS, seed=0):
             jnp.asarray(rng.uniform(-1, 1, (B, T, m))))
 
 
-def time_jax(fn, args):
-    t = time.perf_counter()
+def time_jax(fn, args, cpu=False, best=False):
+    t, c = time.perf_counter(), time.process_time()
     block(fn(*args))
-    first = time.perf_counter() - t
-    return median_time(fn, *args, repeats=3, min_time=0.05), first
+    first, first_cpu = time.perf_counter() - t, time.process_time() - c
+    run = median_time(fn, *args, repeats=5 if best else 3, min_time=0.05, best=best)
+    return (run, first, first_cpu) if cpu else (run, first)
 
 
 def main(argv=None):
@@ -201,11 +207,14 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="reduced sweep")
     ap.add_argument("--no-mjx", action="store_true")
     ap.add_argument("--max-n", type=int, default=32, help="largest chain in the scaling sweep")
+    ap.add_argument("--scaling-only", action="store_true", help="run only the n-link scaling sweep")
     args = ap.parse_args(argv)
     RESULTS.mkdir(exist_ok=True)
     suffix = "_quick" if args.quick else ""
     batches = [1, 64, 1024] if args.quick else [1, 64, 1024, 4096]
-    ns = [n for n in ([2, 4, 8] if args.quick else [2, 4, 8, 12, 16, 24, 32]) if n <= args.max_n]
+    ns = [n for n in ([2, 4, 8] if args.quick else [2, 4, 8, 12, 16, 20, 24, 32]) if n <= args.max_n]
+    if args.scaling_only:
+        return scaling_main(ns, suffix)
     import mujoco
 
     out = dict(quick=args.quick, cpu_count=os.cpu_count(), mujoco=mujoco.__version__, dt=DT, steps=STEPS,
@@ -276,27 +285,100 @@ def main(argv=None):
         ratios["gradient_vs_mjx (SIE, B=1024; target >= 30)"] = lg_sie_g / get("SemiImplicitEuler", "mjx", "gradient_steps_per_s")
     out["ratios_batch1024"] = ratios
 
-    # n-link scaling
-    for n in ns:
-        ch = lg.systems.n_link_pendulum(n, gear=1.0)
-        fwd, _ = lagrange_engine(ch, lg.SemiImplicitEuler())
-        a = _inputs(n, n, 1024, T=20)
-        t, first = time_jax(fwd, a)
-        mj = MujocoC(ch, "Euler")
-        tm = median_time(mj.make(*(np.asarray(x) for x in a)), repeats=3, min_time=0.05)
-        row = dict(n=n, lagrange_us_per_env_step=t / (1024 * 20) * 1e6, lagrange_first_call_s=first,
-                   mujoco_c_us_per_env_step=tm / (1024 * 20) * 1e6)
-        pm = pinocchio_chain(ch)
-        if pm is not None:
-            aba, aba_d = pinocchio_times(pm, n, calls=1000)
-            row |= dict(pinocchio_aba_us_per_call=aba * 1e6, pinocchio_aba_derivatives_us_per_call=aba_d * 1e6)
-        out["scaling"].append(row)
-        print(f"  n={n:2d} {row}", flush=True)
+    out["scaling"] = scaling_rows(ns)
+    out["scaling_fit"] = scaling_fit(out["scaling"])
 
     _print(out)
     _plot_scaling(out["scaling"], RESULTS / f"throughput_scaling{suffix}.png")
     (RESULTS / f"throughput{suffix}.json").write_text(json.dumps(out, indent=1))
     print(f"wrote {RESULTS}/throughput{suffix}.json and throughput_scaling{suffix}.png")
+
+
+SCALING_T = 20
+
+
+def scaling_rows(ns):
+    """n-link pendulums (every joint actuated), SIE at batch 1024: cost per env-step against n."""
+    rows = []
+    for n in ns:
+        ch = lg.systems.n_link_pendulum(n, gear=1.0)
+        fwd, grad = lagrange_engine(ch, lg.SemiImplicitEuler())
+        a = _inputs(n, n, 1024, T=SCALING_T)
+        steps = 1024 * SCALING_T
+        t, first, first_cpu = time_jax(fwd, a, cpu=True, best=True)
+        tg, gfirst, gfirst_cpu = time_jax(grad, a, cpu=True, best=True)
+        mj = MujocoC(ch, "Euler")
+        tm = median_time(mj.make(*(np.asarray(x) for x in a)), repeats=5, min_time=0.05, best=True)
+        row = dict(n=n, lagrange_us_per_env_step=t / steps * 1e6, lagrange_gradient_us_per_env_step=tg / steps * 1e6,
+                   lagrange_first_call_s=first, lagrange_first_call_cpu_s=first_cpu,
+                   lagrange_gradient_first_call_s=gfirst, lagrange_gradient_first_call_cpu_s=gfirst_cpu,
+                   mujoco_c_us_per_env_step=tm / steps * 1e6)
+        pm = pinocchio_chain(ch)
+        if pm is not None:
+            aba, aba_d = pinocchio_times(pm, n, repeats=5, calls=1000, best=True)
+            row |= dict(pinocchio_aba_us_per_call=aba * 1e6, pinocchio_aba_derivatives_us_per_call=aba_d * 1e6)
+        rows.append(row)
+        print(f"  n={n:2d} {row}", flush=True)
+    return rows
+
+
+def scaling_fit(rows, n_min=8):
+    """Exponents p of least-squares fits t ~ n^p over n >= n_min, and the n = 20 ratios to Pinocchio."""
+    fit = {}
+    sel = [r for r in rows if r["n"] >= n_min]
+    if len(sel) >= 2:
+        ln = np.log([r["n"] for r in sel])
+        for key in ("lagrange_us_per_env_step", "lagrange_gradient_us_per_env_step", "mujoco_c_us_per_env_step",
+                    "pinocchio_aba_us_per_call"):
+            if key in sel[0]:
+                fit[f"exponent_{key}_n>={n_min}"] = float(np.polyfit(ln, np.log([r[key] for r in sel]), 1)[0])
+    for r in rows:
+        if r["n"] == 20 and "pinocchio_aba_us_per_call" in r:
+            fit["n20_forward_over_pinocchio_aba (target <= 3)"] = r["lagrange_us_per_env_step"] / r["pinocchio_aba_us_per_call"]
+            fit["n20_gradient_over_pinocchio_aba_derivatives"] = (
+                r["lagrange_gradient_us_per_env_step"] / r["pinocchio_aba_derivatives_us_per_call"])
+    return fit
+
+
+def scaling_main(ns, suffix):
+    import mujoco
+
+    out = dict(cpu_count=os.cpu_count(), mujoco=mujoco.__version__, dt=DT, steps=SCALING_T, batch=1024,
+               system="n_link_pendulum(n, gear=1.0)", integrator="SemiImplicitEuler", pinocchio=None)
+    try:
+        import pinocchio
+
+        out["pinocchio"] = pinocchio.__version__
+    except ImportError as err:
+        out["pinocchio"] = f"not installed: {err}"
+    from lagrange.dynamics import RECURSIVE_MIN
+
+    out["recursive_min"] = RECURSIVE_MIN
+    out["scaling"] = scaling_rows(ns)
+    out["scaling_fit"] = scaling_fit(out["scaling"])
+    _print_scaling(out)
+    _plot_scaling(out["scaling"], RESULTS / f"throughput_scaling{suffix}.png")
+    (RESULTS / f"throughput_scaling{suffix}.json").write_text(json.dumps(out, indent=1))
+    print(f"wrote {RESULTS}/throughput_scaling{suffix}.json and throughput_scaling{suffix}.png")
+
+
+def _print_scaling(out):
+    rows = out["scaling"]
+    if not rows:
+        return
+    cols = [("n", "n", "{:d}"), ("lagrange_us_per_env_step", "lagrange fwd µs/step", "{:.3g}"),
+            ("lagrange_gradient_us_per_env_step", "lagrange grad µs/step", "{:.3g}"),
+            ("pinocchio_aba_us_per_call", "Pinocchio ABA µs/call", "{:.3g}"),
+            ("pinocchio_aba_derivatives_us_per_call", "Pinocchio ABA derivs µs/call", "{:.3g}"),
+            ("mujoco_c_us_per_env_step", "MuJoCo C µs/step", "{:.3g}"),
+            ("lagrange_first_call_cpu_s", "fwd first call CPU s", "{:.2f}"),
+            ("lagrange_gradient_first_call_cpu_s", "grad first call CPU s", "{:.2f}")]
+    cols = [c for c in cols if c[0] in rows[0]]
+    print("\n| " + " | ".join(c[1] for c in cols) + " |\n|" + "---|" * len(cols))
+    for r in rows:
+        print("| " + " | ".join(f.format(r[k]) for k, _, f in cols) + " |")
+    for k, v in out.get("scaling_fit", {}).items():
+        print(f"{k}: {v:.3g}")
 
 
 def _print(out):
@@ -311,11 +393,7 @@ def _print(out):
     print("\n| engine | forward first call [s] | gradient first call [s] |\n|---|---|---|")
     for r in out["compile"]:
         print(f"| {r['integrator']} {r['engine']} | {r['forward_first_call_s']:.2f} | {r['gradient_first_call_s']:.2f} |")
-    if out["scaling"]:
-        keys = list(out["scaling"][0].keys())
-        print("\n| " + " | ".join(keys) + " |\n|" + "---|" * len(keys))
-        for r in out["scaling"]:
-            print("| " + " | ".join(f"{r.get(k, float('nan')):.3g}" for k in keys) + " |")
+    _print_scaling(out)
 
 
 def _plot_scaling(rows, path):
@@ -329,11 +407,18 @@ def _plot_scaling(rows, path):
     n = np.array([r["n"] for r in rows], float)
     fig, ax = plt.subplots(figsize=(5.5, 4))
     ax.loglog(n, [r["lagrange_us_per_env_step"] for r in rows], "o-", label="lagrange SIE, batch 1024, per env-step")
+    if "lagrange_gradient_us_per_env_step" in rows[0]:
+        ax.loglog(n, [r["lagrange_gradient_us_per_env_step"] for r in rows], "o--",
+                  label="lagrange SIE gradient, batch 1024, per env-step")
     ax.loglog(n, [r["mujoco_c_us_per_env_step"] for r in rows], "^-", label="MuJoCo C Euler, 2 threads, per env-step")
     if "pinocchio_aba_us_per_call" in rows[0]:
         ax.loglog(n, [r["pinocchio_aba_us_per_call"] for r in rows], "s-", label="Pinocchio ABA, per call (Python)")
-    ref = rows[0]["lagrange_us_per_env_step"]
-    ax.loglog(n, ref * (n / n[0]) ** 2, "k:", lw=0.8, label="O(n^2)")
+        ax.loglog(n, [r["pinocchio_aba_derivatives_us_per_call"] for r in rows], "s--",
+                  label="Pinocchio ABA derivatives, per call (Python)")
+    k = int(np.argmin(np.abs(n - 8)))  # reference slopes through lagrange's n = 8 point
+    ref = rows[k]["lagrange_us_per_env_step"]
+    ax.loglog(n, ref * (n / n[k]) ** 2, "k:", lw=0.8, label="O(n^2)")
+    ax.loglog(n, ref * (n / n[k]), "k--", lw=0.8, label="O(n)")
     ax.set(xlabel="links n", ylabel="microseconds", title="cost per step against chain length")
     ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.3)
