@@ -108,10 +108,16 @@ def learning_curve(history, path, cfg, paper_return):
                        ("mean_return", "all candidates (finite)")):
         if history and key in history[0]:
             ax.plot(steps, [h[key] for h in history], label=label)
+    # Scale to the best and elite curves: a few candidates that blow up (returns of -1e5 and less) would
+    # otherwise flatten them; the all-candidates mean is then clipped at the bottom of the axes.
+    shown = [h[k] for h in history for k in ("best_return", "elite_return") if np.isfinite(h.get(k, np.nan))]
     if paper_return is not None:
         ax.axhline(paper_return, color="k", ls="--", lw=1, label=f"paper CE-APG ({paper_return:g})")
-        lo, hi = ax.get_ylim()
-        ax.set_ylim(min(lo, paper_return), max(hi, paper_return + 0.05 * (hi - lo)))
+        shown.append(paper_return)
+    if shown:
+        lo, hi = min(shown), max(shown)
+        pad = 0.05 * max(hi - lo, 1.0)
+        ax.set_ylim(lo - pad, hi + pad)
     ax.set_xlabel("simulated environment steps")
     ax.set_ylabel("fitness (mean of last batch returns)")
     ax.set_title(f"CE-APG on {cfg.task}")

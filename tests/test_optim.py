@@ -60,6 +60,16 @@ def test_paper_presets():
         cem.make_trainer(c)
 
 
+def test_laptop_presets():
+    a = ce_apg.CEAPGConfig.laptop("acrobot")
+    assert (a.num_candidates, a.num_elites, a.iterations, a.apg_steps, a.episodes) == (24, 6, 150, 50, 2)
+    assert a.trig_observation and a.env_steps_per_iteration() == 1_200_000
+    assert ce_apg.CEAPGConfig.laptop("double_cartpole").width == 32
+    assert ce_apg.CEAPGConfig.laptop("cartpole", iterations=3).iterations == 3
+    with pytest.raises(ValueError, match="task"):
+        ce_apg.CEAPGConfig.laptop("hopper")
+
+
 def test_custom_task_must_be_passed():
     with pytest.raises(ValueError, match="custom"):
         ce_apg.make_trainer(ce_apg.CEAPGConfig(task="custom"))
