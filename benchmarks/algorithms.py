@@ -1,7 +1,10 @@
 """CE-APG, SHAC, Brax PPO, Brax SAC and Brax APG on the paper's three tasks, on the same dynamics.
 
-    python -m benchmarks.algorithms --quick            # smoke-scale budgets, 1 seed (what this repo's table shows)
-    python -m benchmarks.algorithms --seeds 8          # the paper's budgets, 8 seeds (days on two CPU cores)
+    python -m benchmarks.algorithms --quick                          # smoke-scale budgets, seed 0
+    python -m benchmarks.algorithms --budget laptop --tasks acrobot --algos shac ppo sac brax_apg --seeds 0
+    python -m benchmarks.algorithms --budget laptop --algos ce_apg --ce-apg-from runs/paper_tables/laptop
+    python -m benchmarks.algorithms --budget laptop --plot-only      # table and plots from the saved runs
+    python -m benchmarks.algorithms --budget full                    # the paper's budgets, 8 seeds (days here)
 
 Every algorithm trains on the same task objects (:func:`lagrange.tasks.make_task`; the Brax trainers see
 them through :class:`lagrange.envs.BraxEnv`, unchanged). The final policy of each run is evaluated
@@ -11,16 +14,32 @@ evaluation returns against simulated environment steps and against wall-clock se
 the run (compilation and evaluation included). Brax's curves use Brax's own evaluator
 (``deterministic_eval=True``) on its own random starts.
 
-Budgets (``FULL`` below): CE-APG the authors' protocol (``CEAPGConfig.paper``, 200 iterations x 4.8e6
-steps); SHAC the authors' cartpole config (64 envs x 32-step windows x 500 epochs, 1e6 steps); PPO, SAC
-and Brax APG the hyperparameters of the CE-APG paper's appendix IX-C (PPO 8e7 steps, 512 envs, batch 256,
-32 minibatches, unroll 50, 8 update epochs, discount 0.99, lr 3e-4, entropy 1e-3; SAC 2e6 steps, 64 envs,
-batch 128, discount 0.95, lr 1e-3; Brax APG 1e7 steps, 24 envs, lr 5e-4, whole 500-step episodes per
-update). ``QUICK`` shrinks every budget (and PPO's batch geometry) to a smoke test; the numbers it gives
-are not a comparison of the algorithms.
+Budgets (``--budget``):
 
-Writes ``benchmarks/results/algorithms[_quick].json`` and ``.md`` (table) and one
-``algorithms[_quick]_<task>.png`` per task (curves against env steps and against wall-clock).
+* ``full`` (``FULL``): CE-APG the authors' protocol (``CEAPGConfig.paper``, 200 iterations x 4.8e6
+  steps); SHAC the authors' cartpole config (64 envs x 32-step windows x 500 epochs, 1e6 steps); PPO, SAC
+  and Brax APG the hyperparameters of the CE-APG paper's appendix IX-C (PPO 8e7 steps, 512 envs, batch
+  256, 32 minibatches, unroll 50, 8 update epochs, discount 0.99, lr 3e-4, entropy 1e-3; SAC 2e6 steps, 64
+  envs, batch 128, discount 0.95, lr 1e-3; Brax APG 1e7 steps, 24 envs, lr 5e-4, whole 500-step episodes
+  per update).
+* ``laptop`` (``LAPTOP``): what two shared CPU cores afford: ``full`` for SHAC, SAC and Brax APG, PPO
+  with the same hyperparameters but 1.2e6 of its 8e7 steps (3 updates; ``LAPTOP_CUTS``); CE-APG this
+  project's laptop protocol (the ``laptop`` budget of ``benchmarks/paper_tables.py``: 24 candidates,
+  6 elites, 150 iterations x 50 APG steps x 2 episodes, lr 1e-2 -> 1e-4). ``--ce-apg-from DIR`` takes
+  CE-APG's results from the ``ce_apg_<task>_<seed>.json`` files that ``benchmarks/paper_tables.py``
+  writes instead of training (its curve is then the training fitness of the best candidate from the
+  run's checkpoint header, when the ``.eqx`` is beside it).
+* ``quick`` (``QUICK``, also ``--quick``): every budget (and PPO's batch geometry) shrunk to a smoke test;
+  the numbers it gives are not a comparison of the algorithms.
+
+Each (algorithm, task, seed) run writes its result as soon as it finishes to
+``--runs-dir/<budget>/<algo>_<task>_<seed>.json`` and is skipped when that file exists, so a killed
+benchmark resumes where it stopped (``--force`` redoes the selected runs). The table and plots are made
+from every run file of the budget, selected now or earlier. Each run also records its process CPU seconds
+and the load average, since on a shared machine the wall-clock is inflated by other processes.
+
+Writes ``benchmarks/results/algorithms[_quick|_laptop].json`` and ``.md`` (table) and one
+``algorithms[_quick|_laptop]_<task>.png`` per task (curves against env steps and against wall-clock).
 """
 
 from __future__ import annotations
@@ -70,6 +89,14 @@ FULL = {
                      normalize_observations=True, num_evals=20),
 }
 
+# LAPTOP cuts, measured on the acrobot with two CPU cores shared by four to six training processes (this
+# process got 7-30 % of one core): a PPO update of the paper's geometry (512 envs x 50 steps x 256 x 32 =
+# 409,600 steps, then 8 epochs x 32 minibatches through Brax's 5 x 256 value network) costs ~40
+# CPU-seconds (~250 s of wall-clock there); 1,000 SAC steps (64 envs, one gradient step each) ~5
+# CPU-seconds; a Brax APG update (24 x 500 steps) ~0.01 CPU-seconds after ~25 CPU-seconds of compilation.
+# SAC and Brax APG keep the paper's budgets; PPO is cut to keep a run near 10 minutes of that wall-clock.
+PPO_LAPTOP_STEPS = 1_228_800  # 3 PPO updates of 409,600 steps (the paper: 8e7, 195 updates)
+
 QUICK = {
     "ce_apg": dict(num_candidates=4, num_elites=2, iterations=3, apg_steps=5, episodes=2),
     "shac": dict(num_envs=32, epochs=40),
@@ -81,6 +108,33 @@ QUICK = {
     "brax_apg": dict(env_steps=72_000, num_envs=24, learning_rate=5e-4, horizon_length=HORIZON,
                      normalize_observations=True, num_evals=3),
 }
+
+# ``per_task`` entries override a budget for one task (merged by :func:`budget_for`).
+LAPTOP = {
+    # this project's laptop protocol (benchmarks/paper_tables.py --budget laptop): 1.8e8 steps, hours here
+    "ce_apg": dict(num_candidates=24, num_elites=6, iterations=150, apg_steps=50, episodes=2, lr_start=1e-2,
+                   lr_end=1e-4, init_std=0.05, per_task={"acrobot": dict(trig_observation=True)}),
+    "shac": {},  # the SHAC authors' config as in FULL
+    "ppo": dict(FULL["ppo"], num_timesteps=PPO_LAPTOP_STEPS, num_evals=4),
+    "sac": dict(FULL["sac"]),  # the paper's 2e6 steps
+    "brax_apg": dict(FULL["brax_apg"]),  # the paper's 1e7 steps
+}
+LAPTOP_CUTS = {
+    "ce_apg": "1.8e8 of the paper's ~1e9 env steps (24 candidates, 6 elites, 150 iterations x 50 APG steps x 2 "
+              "episodes instead of 8 elites, 200 x 100 x 4; lr 1e-2 -> 1e-4 instead of 1e-3 -> 1e-6)",
+    "ppo": f"{PPO_LAPTOP_STEPS:.3g} of the paper's 8e7 env steps, 3 updates (same batch geometry and "
+           "hyperparameters)",
+}
+
+BUDGETS = {"quick": QUICK, "laptop": LAPTOP, "full": FULL}
+TAGS = {"quick": "algorithms_quick", "laptop": "algorithms_laptop", "full": "algorithms"}
+
+
+def budget_for(budgets: dict, algo: str, task: str) -> dict:
+    """``budgets[algo]`` with its ``per_task[task]`` overrides merged in (and ``per_task`` removed)."""
+    b = dict(budgets[algo])
+    overrides = b.pop("per_task", {}).get(task, {})
+    return {**b, **overrides}
 
 
 class _BraxPolicy:
@@ -145,6 +199,15 @@ def run_shac(name, seed, budget):
     return rets, bal, curve, steps, time.perf_counter() - t0
 
 
+class Diverged(Exception):
+    """A Brax trainer's final ``pmap.assert_is_replicated(training_state)`` failed, which on one device
+    happens exactly when the training state holds a NaN; ``curve`` is the learning curve up to then."""
+
+    def __init__(self, curve):
+        super().__init__("non-finite training state (Brax's replication check failed)")
+        self.curve = curve
+
+
 def _run_brax(kind, name, seed, budget):
     from lagrange.envs import BraxEnv
 
@@ -181,7 +244,10 @@ def _run_brax(kind, name, seed, budget):
         fn = apg.train
         progress = lambda step, m: curve.append((float(step) * per_eval, time.perf_counter() - t0,
                                                  float(m["eval/episode_reward"])))
-    make_policy, params, _ = fn(**common, **budget, progress_fn=progress)
+    try:
+        make_policy, params, _ = fn(**common, **budget, progress_fn=progress)
+    except AssertionError as e:
+        raise Diverged(curve) from e
     pol = _BraxPolicy(make_policy(params, deterministic=True))
     rets, bal = _evaluate(task, pol, None, seed)
     steps = curve[-1][0] if curve and kind != "brax_apg" else float(steps_total)
@@ -202,105 +268,267 @@ LABELS = {"ce_apg": "CE-APG", "shac": "SHAC", "ppo": "Brax PPO", "sac": "Brax SA
 # ---------------------------------------------------------------------------------------------
 
 
+def _run_path(runs_dir, algo, task, seed):
+    return os.path.join(runs_dir, f"{algo}_{task}_{seed}.json")
+
+
+def train_one(algo, task, seed, budget, budget_name):
+    """Train and evaluate one (algorithm, task, seed); returns the run's result dict."""
+    load0, cpu0, t0 = os.getloadavg(), time.process_time(), time.perf_counter()
+    try:
+        rets, bal, curve, steps, wall = RUNNERS[algo](task, seed, budget)
+    except Diverged as e:  # recorded as a failed seed, not retried
+        return {"algo": algo, "task": task, "seed": seed, "budget": budget_name, "source": "trained",
+                "failed": f"diverged: {e}; last evaluation return {e.curve[-1][2] if e.curve else None}",
+                "return": None, "returns": None,
+                "balanced_fraction": 0.0, "balanced": False, "env_steps": None,
+                "wall_clock": time.perf_counter() - t0, "cpu_seconds": time.process_time() - cpu0,
+                "loadavg_start": list(load0), "loadavg_end": list(os.getloadavg()), "config": budget,
+                "curve": e.curve, "curve_kind": "evaluation"}
+    return {"algo": algo, "task": task, "seed": seed, "budget": budget_name, "source": "trained",
+            "return": float(rets.mean()), "returns": rets.tolist(), "balanced_fraction": float(bal.mean()),
+            "balanced": bool(bal.all()), "env_steps": float(steps), "wall_clock": float(wall),
+            "cpu_seconds": time.process_time() - cpu0, "loadavg_start": list(load0),
+            "loadavg_end": list(os.getloadavg()), "config": budget, "curve": curve, "curve_kind": "evaluation"}
+
+
+def import_ce_apg(task, seed, src_dir):
+    """CE-APG's result for (task, seed) from ``benchmarks/paper_tables.py``'s ``ce_apg_<task>_<seed>.json``
+    in ``src_dir`` (None when absent). Its curve is the best candidate's training fitness per iteration
+    from the checkpoint header (``.eqx`` beside it), when there is one; it has no per-episode returns."""
+    path = os.path.join(src_dir, f"ce_apg_{task}_{seed}.json")
+    if not os.path.exists(path):
+        return None
+    with open(path) as f:
+        r = json.load(f)
+    curve, kind = [], None
+    ckpt = path[:-len(".json")] + ".eqx"
+    if os.path.exists(ckpt):
+        from optim import checkpoint
+
+        hist = checkpoint.read_header(ckpt).get("history", [])
+        curve = [(h["env_steps"], h["elapsed"], h["best_return"]) for h in hist if "best_return" in h]
+        kind = "training fitness of the best candidate"
+    return {"algo": "ce_apg", "task": task, "seed": seed, "budget": r.get("budget"), "source": path,
+            "return": float(r["return"]), "returns": None, "balanced_fraction": None,
+            "balanced": bool(r["balanced"]), "env_steps": float(r["env_steps"]),
+            "wall_clock": float(r["wall_clock_seconds"]), "cpu_seconds": None, "config": r.get("config"),
+            "curve": curve, "curve_kind": kind}
+
+
+def restore_runs(json_path, runs_dir):
+    """Write the runs saved in ``json_path`` back as per-run files in ``runs_dir``; returns how many."""
+    with open(json_path) as f:
+        saved = json.load(f)
+    count = 0
+    for algos in saved.get("runs", {}).values():
+        for rs in algos.values():
+            for r in rs:
+                path = _run_path(runs_dir, r["algo"], r["task"], r["seed"])
+                with open(path + ".tmp", "w") as f:
+                    json.dump(r, f, indent=1)
+                os.replace(path + ".tmp", path)
+                count += 1
+    return count
+
+
+def load_runs(runs_dir):
+    """Every run file in ``runs_dir`` as ``{task: {algo: [run, ...]}}`` (tasks, algorithms, seeds in order)."""
+    found = []
+    for fname in os.listdir(runs_dir) if os.path.isdir(runs_dir) else []:
+        if fname.endswith(".json"):
+            with open(os.path.join(runs_dir, fname)) as f:
+                found.append(json.load(f))
+    runs: dict = {}
+    for task in TASKS:
+        for algo in ALGORITHMS:
+            rs = sorted((r for r in found if r["task"] == task and r["algo"] == algo), key=lambda r: r["seed"])
+            if rs:
+                runs.setdefault(task, {})[algo] = rs
+    return runs
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--quick", action="store_true", help="smoke-scale budgets (QUICK)")
-    p.add_argument("--seeds", type=int, default=None, help="number of seeds (default: 1 with --quick, else 8)")
+    p.add_argument("--budget", choices=tuple(BUDGETS), default=None, help="quick | laptop | full (default full)")
+    p.add_argument("--quick", action="store_true", help="same as --budget quick")
+    p.add_argument("--seeds", nargs="+", type=int, default=None,
+                   help="seeds to run (default: 0 with the quick budget, else 0..7)")
     p.add_argument("--tasks", nargs="+", default=list(TASKS), choices=TASKS)
-    p.add_argument("--algorithms", nargs="+", default=list(ALGORITHMS), choices=ALGORITHMS)
+    p.add_argument("--algos", "--algorithms", dest="algos", nargs="+", default=list(ALGORITHMS), choices=ALGORITHMS)
+    p.add_argument("--ce-apg-from", default=None, metavar="DIR",
+                   help="take CE-APG from DIR/ce_apg_<task>_<seed>.json (benchmarks/paper_tables.py) instead of "
+                        "training it")
+    p.add_argument("--runs-dir", default="runs/algorithms", help="per-run result files go to RUNS_DIR/<budget>/")
+    p.add_argument("--force", action="store_true", help="redo the selected runs even where a result file exists")
     p.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "results"))
-    p.add_argument("--plot-only", action="store_true", help="redo the table and plots from the saved JSON")
+    p.add_argument("--plot-only", action="store_true", help="only redo the table and plots from the saved runs")
     args = p.parse_args(argv)
-    seeds = args.seeds if args.seeds is not None else (1 if args.quick else 8)
-    if seeds < 1:
-        raise SystemExit(f"--seeds must be >= 1, got {seeds}")
-    budgets = QUICK if args.quick else FULL
-    tag = "algorithms_quick" if args.quick else "algorithms"
+    if args.quick and args.budget not in (None, "quick"):
+        raise SystemExit(f"--quick contradicts --budget {args.budget}")
+    budget_name = "quick" if args.quick else (args.budget or "full")
+    seeds = args.seeds if args.seeds is not None else ([0] if budget_name == "quick" else list(range(8)))
+    if any(s < 0 for s in seeds):
+        raise SystemExit(f"--seeds must be >= 0, got {seeds}")
+    budgets = BUDGETS[budget_name]
+    tag = TAGS[budget_name]
+    runs_dir = os.path.join(args.runs_dir, budget_name)
     os.makedirs(args.out, exist_ok=True)
+    os.makedirs(runs_dir, exist_ok=True)
     json_path = os.path.join(args.out, f"{tag}.json")
-    if args.plot_only:
-        with open(json_path) as f:
-            results = json.load(f)
-        write_table(results, os.path.join(args.out, f"{tag}.md"))
-        for name in results["runs"]:
-            plot_task(name, results["runs"][name], os.path.join(args.out, f"{tag}_{name}.png"), args.quick)
-        return results
-    results = {"meta": {"quick": args.quick, "seeds": seeds, "budgets": {a: budgets[a] for a in args.algorithms},
+    if not any(f.endswith(".json") for f in os.listdir(runs_dir)) and os.path.exists(json_path):
+        restored = restore_runs(json_path, runs_dir)  # runs/ is not in git: a fresh clone starts from the table
+        print(f"restored {restored} run files into {runs_dir} from {json_path}")
+    for task in [] if args.plot_only else args.tasks:
+        for algo in args.algos:
+            for seed in seeds:
+                path = _run_path(runs_dir, algo, task, seed)
+                if algo == "ce_apg" and args.ce_apg_from:
+                    run = import_ce_apg(task, seed, args.ce_apg_from)
+                    if run is None:
+                        print(f"{task:16s} {LABELS[algo]:9s} seed {seed}: no result in {args.ce_apg_from}, skipped")
+                        continue
+                elif os.path.exists(path) and not args.force:
+                    print(f"{task:16s} {LABELS[algo]:9s} seed {seed}: done already ({path})")
+                    continue
+                else:
+                    print(f"{task:16s} {LABELS[algo]:9s} seed {seed} ...", flush=True)
+                    run = train_one(algo, task, seed, budget_for(budgets, algo, task), budget_name)
+                with open(path + ".tmp", "w") as f:
+                    json.dump(run, f, indent=1)
+                os.replace(path + ".tmp", path)
+                if run.get("failed"):
+                    print(f"{task:16s} {LABELS[algo]:9s} seed {seed}: FAILED {run['failed']}", flush=True)
+                else:
+                    print(f"{task:16s} {LABELS[algo]:9s} seed {seed}: return {run['return']:.1f}, balanced "
+                          f"{run['balanced']}, {run['env_steps']:.2e} steps, {run['wall_clock']:.0f} s", flush=True)
+    runs = load_runs(runs_dir)
+    results = {"meta": {"budget": budget_name, "quick": budget_name == "quick",
+                        "seeds": sorted({r["seed"] for a in runs.values() for rs in a.values() for r in rs}),
+                        "budgets": {a: budgets[a] for a in ALGORITHMS},
+                        "cuts": LAPTOP_CUTS if budget_name == "laptop" else {},
                         "eval_episodes": EVAL_EPISODES, "jax": jax.__version__, "devices": str(jax.devices()),
-                        "machine": platform.platform(), "cpus": os.cpu_count()},
-               "runs": {}}
-    if os.path.exists(json_path):  # keep runs of tasks/algorithms not redone now
-        with open(json_path) as f:
-            old = json.load(f)
-        if old.get("meta", {}).get("seeds") == seeds:
-            results["runs"] = old.get("runs", {})
-            results["meta"]["budgets"] = {**old["meta"].get("budgets", {}), **results["meta"]["budgets"]}
-    for name in args.tasks:
-        for algo in args.algorithms:
-            runs = []
-            for seed in range(seeds):
-                print(f"{name:16s} {LABELS[algo]:9s} seed {seed} ...", flush=True)
-                rets, bal, curve, steps, wall = RUNNERS[algo](name, seed, budgets[algo])
-                runs.append({"seed": seed, "return": float(rets.mean()), "returns": rets.tolist(),
-                             "balanced_fraction": float(bal.mean()), "env_steps": float(steps),
-                             "wall_clock": float(wall), "curve": curve})
-                print(f"{'':16s} {'':9s} return {rets.mean():.1f}, balanced {bal.mean():.0%}, "
-                      f"{steps:.2e} steps, {wall:.0f} s", flush=True)
-            results["runs"].setdefault(name, {})[algo] = runs
-            with open(json_path, "w") as f:
-                json.dump(results, f, indent=1)
-    write_table(results, os.path.join(args.out, f"{tag}.md"))
+                        "machine": platform.platform(), "cpus": os.cpu_count(), "runs_dir": runs_dir},
+               "runs": runs}
+    with open(json_path, "w") as f:
+        json.dump(results, f, indent=1)
+    return write_outputs(results, args.out, tag)
+
+
+def write_outputs(results, out, tag):
+    write_table(results, os.path.join(out, f"{tag}.md"))
     for name in results["runs"]:
-        plot_task(name, results["runs"][name], os.path.join(args.out, f"{tag}_{name}.png"), args.quick)
+        plot_task(name, results["runs"][name], os.path.join(out, f"{tag}_{name}.png"), _budget_name(results))
     return results
 
 
+def _budget_name(results):
+    meta = results["meta"]
+    return meta.get("budget") or ("quick" if meta.get("quick") else "full")
+
+
+def _cpu_share(runs):
+    shares = [r["cpu_seconds"] / r["wall_clock"] for r in runs if r.get("cpu_seconds") and r["wall_clock"] > 0]
+    return f"{np.mean(shares):.2f}" if shares else "-"
+
+
 def write_table(results, path):
-    seeds = results["meta"]["seeds"]
-    lines = [f"Final deterministic return over {EVAL_EPISODES} random starts, mean +- std over {seeds} seed(s) "
-             f"({'QUICK smoke-scale budgets' if results['meta']['quick'] else 'full budgets'}); balanced = "
-             "fraction of evaluation episodes that end balanced (`lagrange.tasks.balanced`); paper = CE-APG paper "
-             "Table I (8 seeds, its own Brax v1 environments).", "",
-             "| task | algorithm | return | balanced | env steps | wall-clock [s] | paper |",
-             "|---|---|---|---|---|---|---|"]
+    budget = _budget_name(results)
+    what = {"quick": "QUICK smoke-scale budgets", "laptop": "LAPTOP budgets, cut from the paper's where noted",
+            "full": "full budgets"}[budget]
+    lines = [f"Final deterministic return over {EVAL_EPISODES} random starts, mean +- std over seeds ({what}); "
+             "balanced episodes = fraction of evaluation episodes that end balanced (`lagrange.tasks.balanced`), "
+             "balanced seeds = fraction of seeds whose every evaluation episode does; CPU share = process CPU "
+             f"seconds / wall-clock seconds ({results['meta'].get('cpus')} cores, shared with other jobs: the "
+             "wall-clock is inflated where it is below the cores' count); paper = CE-APG paper Table I "
+             "(8 seeds, its own Brax v1 environments).", "",
+             "| task | algorithm | return | seeds | balanced episodes | balanced seeds | env steps | "
+             "wall-clock [s] | CPU share | paper |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for name, algos in results["runs"].items():
-        for algo, runs in algos.items():
+        for algo, all_runs in algos.items():
+            runs = [x for x in all_runs if not x.get("failed")]
+            n_failed = len(all_runs) - len(runs)
+            if not runs:
+                lines.append(f"| {name} | {LABELS[algo]} | all failed | {len(all_runs)} ({n_failed} failed) | "
+                             f"- | 0% | - | - | - | - |")
+                continue
             r = np.array([x["return"] for x in runs])
-            b = np.mean([x["balanced_fraction"] for x in runs])
+            be = [x["balanced_fraction"] for x in runs if x.get("balanced_fraction") is not None]
+            be = f"{np.mean(be):.0%}" if be else "-"
+            bs = [x["balanced"] for x in all_runs if x.get("balanced") is not None]  # failed: not balanced
+            bs = f"{np.mean(bs):.0%}" if bs else "-"
             st = np.mean([x["env_steps"] for x in runs])
             wc = np.mean([x["wall_clock"] for x in runs])
             pap = PAPER.get(algo, {}).get(name)
             pap = f"{pap[0]:g} +- {pap[1]:g}" if pap else "-"
-            ret = f"{r.mean():.1f} +- {r.std():.1f}" if len(r) > 1 else f"{r.mean():.1f} (1 seed)"
-            lines.append(f"| {name} | {LABELS[algo]} | {ret} | {b:.0%} | {st:.2e} | "
-                         f"{wc:.0f} | {pap} |")
+            ret = f"{r.mean():.1f} +- {r.std():.1f}" if len(r) > 1 else f"{r.mean():.1f}"
+            seeds = f"{len(all_runs)}" + (f" ({n_failed} failed)" if n_failed else "")
+            lines.append(f"| {name} | {LABELS[algo]} | {ret} | {seeds} | {be} | {bs} | {st:.2e} | {wc:.0f} | "
+                         f"{_cpu_share(runs)} | {pap} |")
+    failed = [x for algos in results["runs"].values() for rs in algos.values() for x in rs if x.get("failed")]
+    if failed:
+        groups: dict = {}
+        for x in failed:
+            groups.setdefault((x["algo"], x["task"], x["failed"]), []).append(str(x["seed"]))
+        lines += ["", "Failed seeds (return, env steps and wall-clock are over the other seeds; they count as not "
+                  "balanced): " + "; ".join(f"{LABELS[a]} {t} seed(s) {', '.join(ss)}: {why}"
+                                            for (a, t, why), ss in groups.items()) + "."]
+    present = {a for algos in results["runs"].values() for a in algos}
+    trained = {a for algos in results["runs"].values() for a, rs in algos.items()
+               if any(x.get("source", "trained") == "trained" for x in rs)}
+    cuts = {a: c for a, c in (results["meta"].get("cuts") or {}).items() if a in present and a in trained}
+    if cuts:
+        lines += [""] + [f"Cut from the paper: {LABELS[a]} {c}." for a, c in cuts.items()]
+    imported = [x for a in results["runs"].values() for rs in a.values() for x in rs
+                if x.get("source") not in (None, "trained")]
+    if imported:
+        keys = ("num_candidates", "num_elites", "iterations", "apg_steps", "episodes", "lr_start", "lr_end",
+                "init_std", "width", "trig_observation")
+        cfgs = sorted({json.dumps({k: (x.get("config") or {}).get(k) for k in keys}) for x in imported})
+        lines += ["", f"CE-APG rows read from `benchmarks/paper_tables.py` results ({len(imported)} file(s), e.g. "
+                  f"`{imported[0]['source']}`), not trained by this script: same 16 evaluation starts, final "
+                  "policy `trainer.policy(state)`; per-episode balance is not recorded there. Their config(s): "
+                  + "; ".join(f"`{c}`" for c in cfgs) + "."]
     with open(path, "w") as f:
         f.write("\n".join(lines) + "\n")
     print("\n".join(lines))
 
 
-def plot_task(name, algos, path, quick):
+def plot_task(name, algos, path, budget):
+    quick = budget == "quick"
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    for i, (algo, runs) in enumerate(algos.items()):
-        color = f"C{i}"
-        for j, run in enumerate(runs):
-            if not run["curve"]:
+    for algo, runs in algos.items():
+        color = f"C{ALGORITHMS.index(algo)}"  # one colour per algorithm across the tasks' plots
+        for j, run in enumerate([x for x in runs if not x.get("failed")]):
+            if not run["curve"]:  # e.g. an imported CE-APG result: its final evaluation only
+                for ax, x in zip(axes, (run["env_steps"], run["wall_clock"])):
+                    ax.plot([x], [run["return"]], "x", ms=7, color=color,
+                            label=f"{LABELS[algo]} (final only)" if j == 0 else None)
                 continue
-            c = np.array(run["curve"])
-            label = LABELS[algo] if j == 0 else None
-            axes[0].plot(c[:, 0], c[:, 2], "o-", ms=3, color=color, alpha=0.8, label=label)
-            axes[1].plot(c[:, 1], c[:, 2], "o-", ms=3, color=color, alpha=0.8, label=label)
+            c = np.array(run["curve"], float)
+            fitness = run.get("curve_kind") not in (None, "evaluation")
+            label = (LABELS[algo] + (" (training fitness)" if fitness else "")) if j == 0 else None
+            style = dict(ls="--" if fitness else "-", marker="." if fitness else "o", ms=3, color=color, alpha=0.8,
+                         label=label)
+            for ax, x in zip(axes, (c[:, 0], c[:, 1])):
+                keep = x > 0  # log axes: the step-0 evaluation has no place on them
+                ax.plot(x[keep], c[keep, 2], **style)
         pap = PAPER.get(algo, {}).get(name)
         if pap and not quick:
-            axes[0].axhline(pap[0], color=color, ls="--", lw=0.8)
+            axes[0].axhline(pap[0], color=color, ls=":", lw=0.8)
     axes[0].set_xlabel("simulated environment steps")
-    axes[1].set_xlabel("wall-clock seconds since start (compilation included)")
+    axes[0].set_xscale("log")
+    axes[1].set_xlabel("wall-clock seconds since start (compilation included; shared CPU)")
+    axes[1].set_xscale("log")
     for ax in axes:
         ax.set_yscale("symlog", linthresh=100.0)  # returns span 5000 down to -1e7 across algorithms
         ax.set_ylabel("deterministic evaluation return (symlog)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, loc="lower right")
-    fig.suptitle(f"{name}{' (QUICK smoke-scale budgets, not a comparison)' if quick else ''}")
+    note = {"quick": " (QUICK smoke-scale budgets, not a comparison)",
+            "laptop": " (LAPTOP budgets; dotted: paper Table I)", "full": " (dotted: paper Table I)"}[budget]
+    fig.suptitle(f"{name}{note}")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
