@@ -51,6 +51,7 @@ def energy_drift(steps: int):
     configs = [
         ("Euler", lg.Euler(), 1e-3), ("SemiImplicitEuler", lg.SemiImplicitEuler(), 1e-3),
         ("SemiImplicitEuler", lg.SemiImplicitEuler(), 1e-4),
+        ("SymplecticEuler", lg.SymplecticEuler(), 1e-3), ("SymplecticEuler", lg.SymplecticEuler(), 5e-4),
         ("RK4", lg.RK4(), 1e-3), ("RK4", lg.RK4(), 5e-4), ("Tsit5", lg.Tsit5(), 1e-3),
         ("Dopri5", lg.Dopri5(), 1e-3), ("Dopri8", lg.Dopri8(), 1e-3), ("Dopri8", lg.Dopri8(), 1e-2),
     ]

@@ -12,7 +12,7 @@ from lagrange.dynamics import (
 )
 from lagrange.integrate import Trajectory, simulate, step
 from lagrange.kinematics import com_positions, positions
-from lagrange.solvers import RK4, Dopri5, Dopri8, Euler, SemiImplicitEuler, Tsit5
+from lagrange.solvers import RK4, Dopri5, Dopri8, Euler, SemiImplicitEuler, SymplecticEuler, Tsit5
 from lagrange import systems
 
 __all__ = [
@@ -21,6 +21,7 @@ __all__ = [
     "Dopri8",
     "Euler",
     "SemiImplicitEuler",
+    "SymplecticEuler",
     "Tsit5",
     "Trajectory",
     "simulate",

@@ -25,8 +25,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from lagrange.chain import Chain
-from lagrange.dynamics import _forward
-from lagrange.solvers import RK4, SemiImplicitEuler, check_solver, is_adaptive_capable
+from lagrange.dynamics import _forward, actuation_matrix, energy, gravity_forces, mass_matrix
+from lagrange.solvers import RK4, SemiImplicitEuler, SymplecticEuler, check_solver, is_adaptive_capable
 
 
 class Trajectory(eqx.Module):
@@ -90,7 +90,39 @@ def _erk_step(f, tableau, h, y):
     return _axpy(y, h, tableau.b_sol, ks)
 
 
+def _spd_solver(A):
+    """``b -> A^-1 b`` for a (batch of) symmetric positive-definite ``A``, factored once."""
+    L = jnp.linalg.cholesky(A)
+
+    def solve(b):
+        y = jax.lax.linalg.triangular_solve(L, b[..., None], left_side=True, lower=True)
+        return jax.lax.linalg.triangular_solve(L, y, left_side=True, lower=True, transpose_a=True)[..., 0]
+
+    return solve
+
+
+def _symplectic_euler_step(chain: Chain, iterations: int, h, q, qd, u):
+    """One step of :class:`lagrange.SymplecticEuler` (see its docstring for the scheme)."""
+    M = mass_matrix(chain, q)
+    p = jnp.einsum("...ij,...j->...i", M, qd)
+    force = -gravity_forces(chain, q)
+    if u is not None and chain.m:
+        force = force + jnp.einsum("ij,...j->...i", actuation_matrix(chain), u)
+    A = M if chain.damping is None else M + h * jnp.diag(chain.damping)
+    solve = _spd_solver(A)
+    # dT/dq at fixed v; the sum over a batch leaves each state's gradient its own
+    dkin_dq = jax.grad(lambda q_, v: jnp.sum(energy(chain, q_, v)[0]))
+    v = qd
+    for _ in range(iterations):
+        v = solve(p + h * (force + dkin_dq(q, v)))
+    q1 = q + h * v
+    p1 = jnp.einsum("...ij,...j->...i", M, v)
+    return q1, _spd_solver(mass_matrix(chain, q1))(p1)
+
+
 def _fixed_substep(chain: Chain, solver, h, q, qd, u):
+    if isinstance(solver, SymplecticEuler):
+        return _symplectic_euler_step(chain, solver.iterations, h, q, qd, u)
     if isinstance(solver, SemiImplicitEuler):
         qdd = _forward(chain, q, qd, u, implicit_damping_dt=h)
         qd1 = qd + h * qdd
@@ -118,8 +150,8 @@ def _interval(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps):
                 f"{type(solver).__name__} has no embedded error estimate, so rtol/atol cannot be used; "
                 "use Tsit5(), Dopri5() or Dopri8() for adaptive steps, or drop rtol/atol"
             )
-    if isinstance(solver, SemiImplicitEuler) and adjoint is not None:
-        raise ValueError("SemiImplicitEuler runs outside diffeqsolve; pass adjoint=None")
+    if isinstance(solver, (SemiImplicitEuler, SymplecticEuler)) and adjoint is not None:
+        raise ValueError(f"{type(solver).__name__} runs outside diffeqsolve; pass adjoint=None")
     h = dt / substeps
 
     if not adaptive and adjoint is None:

