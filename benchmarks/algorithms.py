@@ -24,8 +24,8 @@ Budgets (``--budget``):
   per update).
 * ``laptop`` (``LAPTOP``): what two shared CPU cores afford: ``full`` for SHAC, SAC and Brax APG, PPO
   with the same hyperparameters but 1.2e6 of its 8e7 steps (3 updates; ``LAPTOP_CUTS``); CE-APG this
-  project's laptop protocol (the ``laptop`` budget of ``benchmarks/paper_tables.py``: 24 candidates,
-  6 elites, 150 iterations x 50 APG steps x 2 episodes, lr 1e-2 -> 1e-4). ``--ce-apg-from DIR`` takes
+  project's laptop protocol, ``CEAPGConfig.laptop(task)`` (also the ``laptop`` budget of
+  ``benchmarks/paper_tables.py`` and the examples' default). ``--ce-apg-from DIR`` takes
   CE-APG's results from the ``ce_apg_<task>_<seed>.json`` files that ``benchmarks/paper_tables.py``
   writes instead of training (its curve is then the training fitness of the best candidate from the
   run's checkpoint header, when the ``.eqx`` is beside it).
@@ -112,16 +112,16 @@ QUICK = {
 # ``per_task`` entries override a budget for one task (merged by :func:`budget_for`).
 LAPTOP = {
     # this project's laptop protocol (benchmarks/paper_tables.py --budget laptop): 1.8e8 steps, hours here
-    "ce_apg": dict(num_candidates=24, num_elites=6, iterations=150, apg_steps=50, episodes=2, lr_start=1e-2,
-                   lr_end=1e-4, init_std=0.05, per_task={"acrobot": dict(trig_observation=True)}),
+    "ce_apg": dict(preset="laptop"),  # CEAPGConfig.laptop(task)
     "shac": {},  # the SHAC authors' config as in FULL
     "ppo": dict(FULL["ppo"], num_timesteps=PPO_LAPTOP_STEPS, num_evals=4),
     "sac": dict(FULL["sac"]),  # the paper's 2e6 steps
     "brax_apg": dict(FULL["brax_apg"]),  # the paper's 1e7 steps
 }
 LAPTOP_CUTS = {
-    "ce_apg": "1.8e8 of the paper's ~1e9 env steps (24 candidates, 6 elites, 150 iterations x 50 APG steps x 2 "
-              "episodes instead of 8 elites, 200 x 100 x 4; lr 1e-2 -> 1e-4 instead of 1e-3 -> 1e-6)",
+    "ce_apg": "CEAPGConfig.laptop(task): 1.8e8 (acrobot), 2.4e7 (cartpole), 9e7 (double cartpole) of the paper's "
+              "~1e9 env steps (fewer elites, APG steps, episodes and iterations; lr 1e-2 -> 1e-4 instead of "
+              "1e-3 -> 1e-6; (sin, cos) observations on the acrobot)",
     "ppo": f"{PPO_LAPTOP_STEPS:.3g} of the paper's 8e7 env steps, 3 updates (same batch geometry and "
            "hyperparameters)",
 }
@@ -167,7 +167,9 @@ def _evaluate(task, policy, normalizer, seed):
 
 
 def run_ce_apg(name, seed, budget):
-    cfg = ce_apg.CEAPGConfig.paper(name, **budget)
+    budget = dict(budget)
+    preset = {"paper": ce_apg.CEAPGConfig.paper, "laptop": ce_apg.CEAPGConfig.laptop}[budget.pop("preset", "paper")]
+    cfg = preset(name, **budget)
     trainer = ce_apg.make_trainer(cfg)
     t0 = time.perf_counter()
     state = trainer.init(jax.random.PRNGKey(seed))
