@@ -29,6 +29,7 @@ import numpy as np  # noqa: E402
 from optim import apg, ce_apg, cem, papg  # noqa: E402
 from optim._loop import run  # noqa: E402
 from optim.apg import evaluate  # noqa: E402
+from optim.devices import cpu_core_count, use_cpu_cores  # noqa: E402
 
 TASKS = ("cartpole", "acrobot", "double_cartpole")
 ALGOS = ("ce_apg", "papg", "cem", "apg")
@@ -134,7 +135,10 @@ def main(argv=None):
     p.add_argument("--seeds", nargs="+", type=int, default=list(range(8)))
     p.add_argument("--out", default="runs/paper_tables")
     p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--cpu-devices", type=int, default=cpu_core_count(),
+                   help="JAX CPU devices to shard CE-APG/PAPG candidates over (default: one per core)")
     args = p.parse_args(argv)
+    use_cpu_cores(args.cpu_devices)
     out = os.path.join(args.out, args.budget)
     os.makedirs(out, exist_ok=True)
     results = []

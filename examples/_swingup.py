@@ -27,6 +27,7 @@ from lagrange.tasks import Task, balanced  # noqa: E402
 from optim import ce_apg  # noqa: E402
 from optim._loop import run  # noqa: E402
 from optim.apg import config_to_dict, episode, evaluate  # noqa: E402
+from optim.devices import cpu_core_count, use_cpu_cores  # noqa: E402
 
 EVAL_EPISODES = 16
 
@@ -39,12 +40,17 @@ def parse(description: str, default_out: str, argv=None):
     p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.eqx if it exists")
     p.add_argument("--quick", action="store_true", help="a short demo run (about two minutes on two cores)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--cpu-devices", type=int, default=cpu_core_count(),
+                   help="JAX CPU devices to shard the candidates over (default: one per core; 1 = a single device)")
     return p.parse_args(argv)
 
 
 def main(description: str, default_out: str, config: ce_apg.CEAPGConfig, quick: ce_apg.CEAPGConfig,
          task: Task | None = None, paper_return: float | None = None, argv=None) -> dict:
     args = parse(description, default_out, argv)
+    if args.cpu_devices < 1:
+        raise SystemExit(f"--cpu-devices must be >= 1, got {args.cpu_devices}")
+    use_cpu_cores(args.cpu_devices)  # before the first JAX computation
     cfg = quick if args.quick else config
     if args.iterations is not None:
         if args.iterations < 1:

@@ -242,3 +242,40 @@ def test_papg_keeps_the_best_run():
     flat, _ = apg.flatten_policy(policy)
     np.testing.assert_array_equal(flat, state.params[i])
     assert len(set(np.asarray(state.fitness).tolist())) == 3  # independent runs
+
+
+_CORES = textwrap.dedent(
+    """
+    import json, sys, warnings
+    sys.path.insert(0, {root!r})
+    import jax, jax.numpy as jnp
+    import optim
+    from optim.devices import use_cpu_cores
+    got = use_cpu_cores(3)
+    n = len(jax.devices("cpu"))
+    jnp.ones(2).sum().block_until_ready()  # JAX has started: the count is fixed now
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        again = use_cpu_cores(5)
+    print(json.dumps({{"got": got, "devices": n, "again": again, "warned": [str(x.message) for x in w]}}))
+    """
+)
+
+
+def test_use_cpu_cores_splits_the_host_before_jax_starts():
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    env["JAX_PLATFORMS"] = "cpu"
+    proc = subprocess.run([sys.executable, "-c", _CORES.format(root=ROOT)], capture_output=True, text=True,
+                          env=env, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert (out["got"], out["devices"], out["again"]) == (3, 3, 3)
+    assert len(out["warned"]) == 1 and "use_cpu_cores(5)" in out["warned"][0]
+
+
+@pytest.mark.parametrize("n", [0, -1, 1.5, True])
+def test_use_cpu_cores_rejects_bad_counts(n):
+    from optim.devices import use_cpu_cores
+
+    with pytest.raises(ValueError, match="n must be an integer >= 1"):
+        use_cpu_cores(n)
