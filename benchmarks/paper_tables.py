@@ -15,7 +15,6 @@ seeds that balance, the paper's numbers beside ours).
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
 import sys

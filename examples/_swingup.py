@@ -10,14 +10,13 @@ import argparse
 import dataclasses
 import json
 import os
-import time
+from typing import Callable
 
 import matplotlib
 
 matplotlib.use("Agg")
 
 import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib import animation  # noqa: E402
@@ -46,7 +45,9 @@ def parse(description: str, default_out: str, argv=None):
 
 
 def main(description: str, default_out: str, config: ce_apg.CEAPGConfig, quick: ce_apg.CEAPGConfig,
-         task: Task | None = None, paper_return: float | None = None, argv=None) -> dict:
+         task: Task | Callable[[], Task] | None = None, paper_return: float | None = None, argv=None) -> dict:
+    """Parse the flags, train, evaluate and write the artefacts. ``task``: a Task, or a function that builds
+    one (called after the CPU devices are set: building a chain runs JAX, which fixes the device count)."""
     args = parse(description, default_out, argv)
     if args.cpu_devices < 1:
         raise SystemExit(f"--cpu-devices must be >= 1, got {args.cpu_devices}")
@@ -57,6 +58,8 @@ def main(description: str, default_out: str, config: ce_apg.CEAPGConfig, quick: 
             raise SystemExit(f"--iterations must be >= 1, got {args.iterations}")
         cfg = dataclasses.replace(cfg, iterations=args.iterations)
     os.makedirs(args.out, exist_ok=True)
+    if callable(task) and not isinstance(task, Task):
+        task = task()
     trainer = ce_apg.make_trainer(cfg, task)
     task = trainer.task
     ckpt = os.path.join(args.out, "checkpoint.eqx")
@@ -150,8 +153,11 @@ def episode_plot(task: Task, ep, path):
         lab = "th1 (0 = upright)" if i == 0 else f"th{i + 1} (0 = straight)"
         axes[0].plot(t, th[:, i], label=lab)
         axes[1].plot(t, dth[:, i], label=f"dth{i + 1}")
-    if task.cart:
-        axes[0].plot(t, np.asarray(ep.q[:, 0]), "k:", label="cart x [m]")
+    if task.cart:  # the cart's position on its own scale (metres; it may drift far where the reward ignores it)
+        cart_ax = axes[0].twinx()
+        cart_ax.plot(t, np.asarray(ep.q[:, 0]), "k:", label="cart x [m] (right axis)")
+        cart_ax.set_ylabel("cart x [m]")
+        cart_ax.legend(fontsize=7, loc="lower right")
     axes[0].axhspan(-0.2, 0.2, color="g", alpha=0.1, label="balanced band +-0.2")
     axes[0].set_ylabel("angle [rad]")
     axes[1].set_ylabel("velocity [rad/s]")

@@ -19,15 +19,19 @@ from lagrange.chain import Chain, Link  # noqa: E402
 from lagrange.tasks import chain_swingup  # noqa: E402
 from optim.ce_apg import CEAPGConfig  # noqa: E402
 
-chain = Chain(
-    [
-        Link("revolute", mass=2.0, length=0.8, damping=0.05, gear=30.0),  # shoulder motor, 30 N m
-        Link("revolute", mass=1.0, length=0.6, damping=0.05, gear=15.0),  # elbow motor, 15 N m
-        Link("revolute", mass=0.5, length=0.4, damping=0.05),  # passive wrist
-    ],
-    gravity=9.81,
-)
-TASK = chain_swingup(chain, dt=0.02, horizon=250)
+
+def make_task():
+    """The chain and its swing-up task (built when the example runs, after the CPU devices are set)."""
+    chain = Chain(
+        [
+            Link("revolute", mass=2.0, length=0.8, damping=0.05, gear=30.0),  # shoulder motor, 30 N m
+            Link("revolute", mass=1.0, length=0.6, damping=0.05, gear=15.0),  # elbow motor, 15 N m
+            Link("revolute", mass=0.5, length=0.4, damping=0.05),  # passive wrist
+        ],
+        gravity=9.81,
+    )
+    return chain_swingup(chain, dt=0.02, horizon=250)
+
 
 CONFIG = CEAPGConfig(task="custom", num_candidates=24, num_elites=8, iterations=40, apg_steps=25, episodes=2,
                      horizon=250, lr_start=1e-2, lr_end=1e-4, init_std=0.15)
@@ -35,4 +39,4 @@ QUICK = CEAPGConfig(task="custom", num_candidates=8, num_elites=3, iterations=8,
                     horizon=250, lr_start=1e-2, lr_end=1e-3, init_std=0.15)
 
 if __name__ == "__main__":
-    main(__doc__.splitlines()[0], "runs/custom_chain", CONFIG, QUICK, task=TASK)
+    main(__doc__.splitlines()[0], "runs/custom_chain", CONFIG, QUICK, task=make_task)

@@ -14,6 +14,7 @@ from typing import Any, Callable, NamedTuple
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optax
 from jax.flatten_util import ravel_pytree
 
@@ -52,6 +53,12 @@ def check_common(cfg) -> None:
     _check_int(cls, "episodes", cfg.episodes, 1)
     if cfg.truncation is not None:
         _check_int(cls, "truncation", cfg.truncation, 1)
+
+
+def log_linear_lr(iteration, iterations: int, lr_start: float, lr_end: float):
+    """The CE-APG authors' schedule: ``lr_start^((T - i) / T) * lr_end^(i / T)`` at iteration ``i`` of ``T``."""
+    frac = jnp.asarray(iteration, jnp.float32) / iterations
+    return jnp.exp((1 - frac) * np.log(lr_start) + frac * np.log(lr_end))
 
 
 def config_to_dict(cfg) -> dict:

@@ -16,7 +16,6 @@ from __future__ import annotations
 import dataclasses
 from typing import NamedTuple
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -32,6 +31,7 @@ from optim.apg import (
     check_common,
     episode,
     flatten_policy,
+    log_linear_lr,
 )
 from policies import Normalizer
 
@@ -130,9 +130,8 @@ class CEAPGConfig:
         return self.num_candidates * max(self.apg_steps, 1) * self.episodes * self.horizon
 
     def learning_rate(self, iteration):
-        """Log-linear schedule ``lr_start^((T - i) / T) * lr_end^(i / T)``."""
-        frac = jnp.asarray(iteration, jnp.float32) / self.iterations
-        return jnp.exp((1 - frac) * np.log(self.lr_start) + frac * np.log(self.lr_end))
+        """Log-linear from ``lr_start`` at iteration 0 to ``lr_end`` at ``iterations`` (constant within one)."""
+        return log_linear_lr(iteration, self.iterations, self.lr_start, self.lr_end)
 
 
 class CEState(NamedTuple):

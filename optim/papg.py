@@ -12,13 +12,13 @@ from __future__ import annotations
 import dataclasses
 from typing import NamedTuple
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-from optim.apg import Trainer, _check_int, _check_pos, apg_steps, build_policy, build_task, check_common, flatten_policy
+from optim.apg import (Trainer, _check_int, _check_pos, apg_steps, build_policy, build_task, check_common,
+                       flatten_policy, log_linear_lr)
 from policies import Normalizer
 
 
@@ -57,8 +57,8 @@ class PAPGConfig:
         return self.num_runs * self.apg_steps * self.episodes * self.horizon
 
     def learning_rate(self, iteration):
-        frac = jnp.asarray(iteration, jnp.float32) / self.iterations
-        return jnp.exp((1 - frac) * np.log(self.lr_start) + frac * np.log(self.lr_end))
+        """Log-linear from ``lr_start`` at iteration 0 to ``lr_end`` at ``iterations`` (constant within one)."""
+        return log_linear_lr(iteration, self.iterations, self.lr_start, self.lr_end)
 
 
 class PAPGState(NamedTuple):
