@@ -312,7 +312,7 @@ def import_ce_apg(task, seed, src_dir):
         curve = [(h["env_steps"], h["elapsed"], h["best_return"]) for h in hist if "best_return" in h]
         kind = "training fitness of the best candidate"
     return {"algo": "ce_apg", "task": task, "seed": seed, "budget": r.get("budget"), "source": path,
-            "return": float(r["return"]), "returns": None, "balanced_fraction": None,
+            "return": float(r["return"]), "returns": None, "balanced_fraction": r.get("balanced_fraction"),
             "balanced": bool(r["balanced"]), "env_steps": float(r["env_steps"]),
             "wall_clock": float(r["wall_clock_seconds"]), "cpu_seconds": None, "config": r.get("config"),
             "curve": curve, "curve_kind": kind}
