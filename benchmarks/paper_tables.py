@@ -8,8 +8,9 @@
 For every (algorithm, task, seed) it trains, evaluates the final deterministic policy on 16 fixed random
 starts, and records the mean return, whether every evaluation episode balanced, env steps and wall-clock
 seconds. Runs are checkpointed under ``--out`` and skipped when their result exists, so the benchmark can
-be resumed. Writes ``--out/results.json`` and ``--out/tables.md`` (mean +- std over seeds, fraction of
-seeds that balance, the paper's numbers beside ours).
+be resumed. Writes ``--out/<budget>/results.json`` and ``tables.md`` (mean +- std over seeds, fraction of
+seeds that balance, the paper's numbers beside ours), and the same as
+``benchmarks/results/paper_tables_<budget>_{results.json,tables.md}``, from every finished run of the budget.
 """
 
 from __future__ import annotations
@@ -133,6 +134,8 @@ def main(argv=None):
     p.add_argument("--algos", nargs="+", choices=ALGOS, default=list(ALGOS))
     p.add_argument("--seeds", nargs="+", type=int, default=list(range(8)))
     p.add_argument("--out", default="runs/paper_tables")
+    p.add_argument("--results", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "results"),
+                   help="where paper_tables_<budget>_{results.json,tables.md} are written (besides OUT/<budget>/)")
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--cpu-devices", type=int, default=cpu_core_count(),
                    help="JAX CPU devices to shard CE-APG/PAPG candidates over (default: one per core)")
@@ -140,21 +143,37 @@ def main(argv=None):
     use_cpu_cores(args.cpu_devices)
     out = os.path.join(args.out, args.budget)
     os.makedirs(out, exist_ok=True)
-    results = []
     for algo in args.algos:
         for task in args.tasks:
             for seed in args.seeds:
                 r = one_run(algo, task, seed, args.budget, out, not args.no_progress)
                 print(f"{algo:7s} {task:16s} seed {seed}: return {r['return']:8.0f} balanced {r['balanced']} "
                       f"{r['env_steps']:.2e} steps {r['wall_clock_seconds']:.0f} s", flush=True)
-                results.append(r)
-    with open(os.path.join(out, "results.json"), "w") as f:
-        json.dump(results, f, indent=2)
+    # The tables cover every finished run of this budget, selected now or in an earlier invocation.
+    results = saved_runs(out)
     md = table(results, args.budget)
-    with open(os.path.join(out, "tables.md"), "w") as f:
-        f.write(md)
+    for folder in (out, args.results):
+        os.makedirs(folder, exist_ok=True)
+        stem = "" if folder == out else f"paper_tables_{args.budget}_"
+        with open(os.path.join(folder, f"{stem}results.json"), "w") as f:
+            json.dump(results, f, indent=2)
+        with open(os.path.join(folder, f"{stem}tables.md"), "w") as f:
+            f.write(md)
     print(md)
 
+
+def saved_runs(out):
+    """Every per-run result file (``<algo>_<task>_<seed>.json``) in ``out``, in algorithm, task, seed order."""
+    runs = []
+    for name in os.listdir(out):
+        stem, ext = os.path.splitext(name)
+        parts = stem.rsplit("_", 1)
+        if ext != ".json" or len(parts) != 2 or not parts[1].isdigit():
+            continue
+        with open(os.path.join(out, name)) as f:
+            runs.append(json.load(f))
+    order = {a: i for i, a in enumerate(ALGOS)}
+    return sorted(runs, key=lambda r: (order.get(r["algo"], 99), TASKS.index(r["task"]), r["seed"]))
 
 if __name__ == "__main__":
     main()
