@@ -490,7 +490,7 @@ def write_table(results, path):
         cfgs = sorted({json.dumps({k: (x.get("config") or {}).get(k) for k in keys}) for x in imported})
         lines += ["", f"CE-APG rows read from `benchmarks/paper_tables.py` results ({len(imported)} file(s), e.g. "
                   f"`{imported[0]['source']}`), not trained by this script: same 16 evaluation starts, final "
-                  "policy `trainer.policy(state)`; per-episode balance is not recorded there. Their config(s): "
+                  "policy `trainer.policy(state)`; balanced episodes as recorded there. Their config(s): "
                   + "; ".join(f"`{c}`" for c in cfgs) + "."]
     with open(path, "w") as f:
         f.write("\n".join(lines) + "\n")
