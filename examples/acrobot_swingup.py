@@ -23,8 +23,9 @@ from optim.ce_apg import CEAPGConfig  # noqa: E402
 # iterations instead of 200, learning rate 1e-2 -> 1e-4 instead of 1e-3 -> 1e-6, and (sin th, cos th) observations
 # instead of the wrapped angles, whose 2 pi jump at every swing through hanging kept every run we tried stuck at 347.
 CONFIG = CEAPGConfig.laptop("acrobot")
-QUICK = CEAPGConfig(task="acrobot", num_candidates=12, num_elites=4, iterations=25, apg_steps=20, episodes=2,
-                    lr_start=1e-2, lr_end=1e-3, init_std=0.05, trig_observation=True)
+# --quick: the default protocol cut to 45 iterations (5.4e7 env steps, the learning-rate schedule compressed to
+# match): about two minutes on two CPU cores; seed 0 reaches 1838 (a swing-up under way, not yet balanced).
+QUICK = CEAPGConfig.laptop("acrobot", iterations=45)
 
 if __name__ == "__main__":
     main(__doc__.splitlines()[0], "runs/acrobot_swingup", CONFIG, QUICK, paper_return=3053.0)
