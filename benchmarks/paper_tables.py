@@ -105,8 +105,8 @@ def one_run(algo, task, seed, budget, out, progress):
 
 
 def table(results, budget):
-    lines = [f"| algorithm | task | paper (mean +- std, 8 seeds) | ours (mean +- std) | seeds | seeds balanced | "
-             f"episodes balanced | env steps / run | wall-clock / run [s] |", "|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| algorithm | task | paper (mean +- std, 8 seeds) | ours (mean +- std) | seeds | seeds balanced | "
+             "episodes balanced | env steps / run | wall-clock / run [s] |", "|---|---|---|---|---|---|---|---|---|"]
     for algo in ALGOS:
         for task in TASKS:
             rs = [r for r in results if r["algo"] == algo and r["task"] == task]
@@ -174,6 +174,7 @@ def saved_runs(out):
             runs.append(json.load(f))
     order = {a: i for i, a in enumerate(ALGOS)}
     return sorted(runs, key=lambda r: (order.get(r["algo"], 99), TASKS.index(r["task"]), r["seed"]))
+
 
 if __name__ == "__main__":
     main()

@@ -51,12 +51,13 @@ def main(description: str, default_out: str, config: ce_apg.CEAPGConfig, quick: 
     args = parse(description, default_out, argv)
     if args.cpu_devices < 1:
         raise SystemExit(f"--cpu-devices must be >= 1, got {args.cpu_devices}")
-    use_cpu_cores(args.cpu_devices)  # before the first JAX computation
     cfg = quick if args.quick else config
     if args.iterations is not None:
         if args.iterations < 1:
             raise SystemExit(f"--iterations must be >= 1, got {args.iterations}")
         cfg = dataclasses.replace(cfg, iterations=args.iterations)
+    # Before the first JAX computation; more devices than candidates would only add padding candidates.
+    use_cpu_cores(min(args.cpu_devices, cfg.num_candidates))
     os.makedirs(args.out, exist_ok=True)
     if callable(task) and not isinstance(task, Task):
         task = task()
