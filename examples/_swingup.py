@@ -56,8 +56,7 @@ def main(description: str, default_out: str, config: ce_apg.CEAPGConfig, quick: 
         if args.iterations < 1:
             raise SystemExit(f"--iterations must be >= 1, got {args.iterations}")
         cfg = dataclasses.replace(cfg, iterations=args.iterations)
-    # Before the first JAX computation; more devices than candidates would only add padding candidates.
-    use_cpu_cores(min(args.cpu_devices, cfg.num_candidates))
+    use_cpu_cores(args.cpu_devices)  # before the first JAX computation
     os.makedirs(args.out, exist_ok=True)
     if callable(task) and not isinstance(task, Task):
         task = task()

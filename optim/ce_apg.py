@@ -18,8 +18,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-import numpy as np
-from jax.sharding import Mesh, NamedSharding, PartitionSpec
+from jax.sharding import NamedSharding, PartitionSpec
 
 from optim.apg import (
     Trainer,
@@ -33,6 +32,7 @@ from optim.apg import (
     flatten_policy,
     log_linear_lr,
 )
+from optim.devices import candidate_mesh
 from policies import Normalizer
 
 
@@ -147,17 +147,13 @@ class CEState(NamedTuple):
     iteration: jax.Array
 
 
-def _mesh():
-    return Mesh(np.asarray(jax.devices()), ("candidates",))
-
-
 def make_trainer(config: CEAPGConfig, task=None) -> Trainer:
     """Init/update pair for the host loop; ``update`` runs one jitted CE iteration."""
     task = build_task(config, task)
     template = build_policy(config, task, jax.random.PRNGKey(0))
     flat0, unravel = flatten_policy(template)
     P = flat0.size
-    mesh = _mesh()
+    mesh = candidate_mesh(config.num_candidates)
     ndev = len(mesh.devices)
     K = config.num_candidates
     Kpad = -(-K // ndev) * ndev  # pad the candidate axis to a multiple of the device count

@@ -5,8 +5,9 @@ small batched operations that that pool barely parallelises: on two cores one de
 Splitting the host into one device per core and sharding the candidate axis over them (which
 :func:`optim.ce_apg.make_trainer` already does for any device count) runs the candidates on every core. Measured on
 the project's 2-core machine, acrobot, 24 candidates x 10 APG steps x 2 episodes x 500 steps: 0.80 s per iteration
-on one device, 0.36 s on two, 0.43 s on four, 0.58 s on eight. Results do not depend on the device count
-(``tests/test_optim.py::test_sharded_equals_unsharded``).
+on one device, 0.36 s on two, 0.43 s on four, 0.58 s on eight. One iteration equals the single-device result to
+round-off (``tests/test_optim.py::test_sharded_equals_single_device``); over a long run chaotic training amplifies that
+round-off, so a seed's outcome can differ with the device count (README, "Training").
 
 Call :func:`use_cpu_cores` before the first JAX computation (importing ``jax``, ``lagrange`` or ``optim`` is
 fine). It changes only the CPU platform: on a machine with a GPU, ``jax.devices()`` is still the GPU.
@@ -17,7 +18,7 @@ from __future__ import annotations
 import os
 import warnings
 
-__all__ = ["use_cpu_cores", "cpu_core_count"]
+__all__ = ["use_cpu_cores", "cpu_core_count", "candidate_mesh"]
 
 
 def cpu_core_count() -> int:
@@ -51,3 +52,13 @@ def use_cpu_cores(n: int | None = None) -> int:
                           stacklevel=2)
         return have
     return n
+
+
+def candidate_mesh(num_candidates: int):
+    """A 1-D ``"candidates"`` mesh over at most ``num_candidates`` of ``jax.devices()``: more devices than candidates
+    would only run padding candidates."""
+    import jax
+    import numpy as np
+    from jax.sharding import Mesh
+
+    return Mesh(np.asarray(jax.devices()[:max(1, num_candidates)]), ("candidates",))

@@ -14,11 +14,11 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-import numpy as np
-from jax.sharding import Mesh, NamedSharding, PartitionSpec
+from jax.sharding import NamedSharding, PartitionSpec
 
 from optim.apg import (Trainer, _check_int, _check_pos, apg_steps, build_policy, build_task, check_common,
                        flatten_policy, log_linear_lr)
+from optim.devices import candidate_mesh
 from policies import Normalizer
 
 
@@ -73,7 +73,7 @@ def make_trainer(config: PAPGConfig, task=None) -> Trainer:
     task = build_task(config, task)
     _, unravel = flatten_policy(build_policy(config, task, jax.random.PRNGKey(0)))
     N = config.num_runs
-    mesh = Mesh(np.asarray(jax.devices()), ("candidates",))
+    mesh = candidate_mesh(N)
     ndev = len(mesh.devices)
     if N % ndev:
         raise ValueError(f"PAPGConfig.num_runs ({N}) must be a multiple of the device count ({ndev})")
