@@ -33,6 +33,7 @@ def save(path, state, *, config: dict, **header) -> None:
     os.makedirs(folder, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=".ckpt-", dir=folder)
     try:
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the file an ordinary file's mode
         with os.fdopen(fd, "wb") as f:
             f.write(json.dumps(head).encode() + b"\n")
             f.write(buf.getvalue())
@@ -43,6 +44,12 @@ def save(path, state, *, config: dict, **header) -> None:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def read_header(path) -> dict:

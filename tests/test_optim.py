@@ -153,6 +153,12 @@ def test_checkpoint_round_trip_and_errors(tiny_trainer, tmp_path):
     assert params_equal(loaded, state)
     assert head["seed"] == 1 and head["version"] == checkpoint.VERSION and head["config"] == cfg
     assert not [p for p in os.listdir(tmp_path) if p.startswith(".ckpt-")]  # no temp file left behind
+    old = os.umask(0o022)
+    try:  # an ordinary file's mode under the umask (mkstemp alone would leave 0600)
+        checkpoint.save(tmp_path / "mode.eqx", state, config=cfg)
+    finally:
+        os.umask(old)
+    assert (tmp_path / "mode.eqx").stat().st_mode & 0o777 == 0o644
 
     other = dict(cfg, num_elites=3)
     with pytest.raises(checkpoint.CheckpointError, match="num_elites"):
