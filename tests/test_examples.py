@@ -38,6 +38,10 @@ def test_quick_run_writes_every_artefact(tmp_path):
     cfg = res["config"]
     assert res["env_steps"] == cfg["num_candidates"] * cfg["apg_steps"] * cfg["episodes"] * cfg["horizon"]
     assert isinstance(res["balanced"], bool)
+    # the shipped policy is chosen on selection episodes, not on the reported ones
+    assert set(res["selection_returns"]) == {"best", "mean"}
+    assert res["policy"] == max(res["selection_returns"], key=res["selection_returns"].get)
+    assert res["return"] == res["returns_by_policy"][res["policy"]]
     assert -5000 < res["return"] <= 5000
     gif = Image.open(out / "swingup.gif")
     assert gif.n_frames > 50  # the 5-s episode, one frame per 0.05 s
