@@ -1,6 +1,6 @@
 """How high can an acrobot swing-up return go? Multi-start trajectory optimisation of the swing-up.
 
-    python -m benchmarks.swingup_bound            # 64 starts x 8 swing-up times (about 6 minutes on 2 cores)
+    python -m benchmarks.swingup_bound            # 64 starts x 8 swing-up times (about 10 minutes on 2 cores)
     python -m benchmarks.swingup_bound --quick    # 16 starts, three swing-up times
 
 The acrobot's reward is at most 10 per step and about 0 while the chain hangs (10 - pi^2), so a return
