@@ -9,8 +9,9 @@ physics (two 1 m, 2.5 kg thin rods, elbow torque at most 25 N m, dt = 0.01 s) al
 any policy class or learner. For each swing-up time ``T`` (control steps), multi-start open-loop
 optimisation of the first ``T`` actions (Adam on pre-tanh logits, BPTT through ``task.step`` from the
 noise-free hanging start) maximises the return of those steps minus a terminal penalty
-``w (|th|^2 + 0.05 |dth|^2)`` asking to arrive upright and slow. A start *arrives* when every angle
-ends within 0.2 rad of upright (the ``balanced`` tolerance) and every speed within 1 rad/s.
+``w (|th|^2 + 0.05 |dth|^2)`` asking to arrive upright and slow. A start *arrives* when both of the
+reward's angles (the first link's from upright, the elbow's bend) end within 0.2 rad (the ``balanced``
+tolerance) and both speeds within 1 rad/s.
 
 Since no step can earn more than 10, an episode that swings up along an arrived trajectory earns at
 most ``swing part + 10 (500 - T)``: the *perfect-hold estimate* reported per ``T``. Its maximum over
@@ -50,12 +51,17 @@ def swing(task, logits):
     return r.sum(), task.angles(s), s.qd
 
 
+def swing_loss(task, logits, weight: float):
+    """What the optimiser minimises: minus the swing-up's return plus ``weight (|th|^2 + 0.05 |dth|^2)`` at its end."""
+    ret, th, dth = swing(task, logits)
+    return -ret + weight * (jnp.sum(th**2) + 0.05 * jnp.sum(dth**2))
+
+
 def optimise_swing(task, T: int, starts: int, steps: int, weight: float, key):
     """Multi-start Adam (cosine-decayed 0.05 -> 5e-4) on ``T`` open-loop logits; returns (starts, T)."""
 
     def loss(z):
-        ret, th, dth = swing(task, z)
-        return -ret + weight * (jnp.sum(th**2) + 0.05 * jnp.sum(dth**2))
+        return swing_loss(task, z, weight)
 
     opt = optax.adam(optax.cosine_decay_schedule(0.05, steps, 0.01))
     z = jax.random.normal(key, (starts, T))
