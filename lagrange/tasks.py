@@ -23,9 +23,10 @@ double_cartpole  (x, q1, q2) / (dx, dq1, dq2)     cart force 1000 a N      (x, s
 
 ``Task(..., trig=True)`` observes ``(sin th, cos th, dth)`` (plus ``x, dx`` with a cart) instead of the
 wrapped angles; it is the double cartpole's layout and an option elsewhere (the acrobot example uses
-it: the wrapped first angle jumps by 2 pi at every swing through hanging). ``upright=True`` starts
-balanced (balance-only variants, used in tests). ``chain_swingup(chain)`` makes the acrobot's task for
-any fixed-base revolute chain with at least one motor.
+it: the wrapped first angle jumps by 2 pi at every swing through hanging). ``upright=p`` starts
+balanced with probability ``p`` (``upright=1``: balance-only variants, used in tests; a fraction is a
+training curriculum, see ``CEAPGConfig.upright_starts``; the paper's tasks use 0).
+``chain_swingup(chain)`` makes the acrobot's task for any fixed-base revolute chain with at least one motor.
 
 Physical parameters (paper-facts; unstated ones chosen and documented in :mod:`lagrange.systems`):
 acrobot two links 1 m, 2.5 kg; cartpole cart 10.47 kg, pole 5.02 kg, 1 m; double cartpole cart
@@ -102,8 +103,12 @@ class Task(eqx.Module):
     substeps: int = eqx.field(static=True, default=1)
     noise: float = eqx.field(static=True, default=0.01)
     solver: object = eqx.field(static=True, default=RK4())
-    upright: bool = eqx.field(static=True, default=False)
+    upright: float = eqx.field(static=True, default=0.0)
     trig: bool = eqx.field(static=True, default=False)
+
+    def __check_init__(self):
+        if not 0 <= float(self.upright) <= 1:
+            raise ValueError(f"Task.upright must be a probability in [0, 1], got {self.upright!r}")
 
     @property
     def cart(self) -> bool:
@@ -127,13 +132,18 @@ class Task(eqx.Module):
 
     # -- state ------------------------------------------------------------------------------
     def reset(self, key) -> TaskState:
-        """Hanging down (upright if ``upright``), with uniform noise in ``[-noise, noise]`` on every ``q`` and ``qd``."""
+        """Hanging down, with uniform noise in ``[-noise, noise]`` on every ``q`` and ``qd``; balanced
+        upright instead with probability ``upright`` (1: always, a balance-only task)."""
         n = self.chain.n
         dtype = jnp.result_type(self.chain.mass)
         kq, kv = jax.random.split(key)
         q = jax.random.uniform(kq, (n,), dtype, -self.noise, self.noise)
-        if self.upright:  # start balanced instead of hanging (for balance-only variants)
+        p = float(self.upright)
+        if p >= 1:
             q = q.at[1 if self.cart else 0].add(jnp.pi)
+        elif p > 0:  # the coin has its own key, so p = 0 draws exactly the paper's starts
+            up = jax.random.bernoulli(jax.random.fold_in(key, 0x0B), p)
+            q = q.at[1 if self.cart else 0].add(jnp.where(up, jnp.pi, 0.0).astype(dtype))
         qd = jax.random.uniform(kv, (n,), dtype, -self.noise, self.noise)
         return TaskState(q, qd)
 
@@ -196,9 +206,9 @@ def double_cartpole(**chain_kwargs) -> Task:
 
 
 def chain_swingup(chain: Chain, *, dt: float = 0.01, horizon: int = 500, substeps: int = 1, noise: float = 0.01,
-                  upright: bool = False) -> Task:
+                  upright: float = 0.0) -> Task:
     """Swing-up of any fixed-base chain of revolute links, with the acrobot's observation and reward
-    (``upright=True``: start balanced, a balance-only task)."""
+    (``upright=1``: start balanced, a balance-only task; ``0 < upright < 1``: that fraction of starts)."""
     if any(j != "revolute" for j in chain.joints):
         raise ValueError(f"chain_swingup needs revolute joints only, got joints={chain.joints}")
     if chain.m < 1:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
 
@@ -31,9 +32,14 @@ def run(trainer, key, *, iterations: int, ckpt_path: str | None = None, resume: 
     if resume and ckpt_path and os.path.exists(ckpt_path):
         # The iteration count may grow on resume (it only sets where the learning-rate schedule ends; a
         # resumed run equals an uninterrupted one when it is unchanged); every other field must match.
+        # A field added to the config since the checkpoint was written matches when it has its default.
         head = checkpoint.read_header(ckpt_path)
         if isinstance(head.get("config"), dict):
-            config_check = dict(config, iterations=head["config"].get("iterations"))
+            saved = head["config"]
+            defaults = {f.name: f.default for f in dataclasses.fields(trainer.config)}
+            config_check = {k: v for k, v in config.items()
+                            if k in saved or k not in defaults or v != defaults[k]}
+            config_check["iterations"] = saved.get("iterations")
         else:
             config_check = config
         state, head = checkpoint.load(ckpt_path, state, config=config_check)

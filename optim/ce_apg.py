@@ -58,6 +58,10 @@ class CEAPGConfig:
       truncation: truncated-BPTT window, None = whole episode [None].
       trig_observation: observe (sin th, cos th, dth) instead of wrapped angles [False]; the wrapped
         first-link angle jumps by 2 pi at every swing through hanging (see ``lagrange.tasks``).
+      upright_starts: probability that a *training* episode starts balanced upright instead of
+        hanging, a curriculum that shows every candidate the balance it must end in [0]. Fitness
+        counts those episodes too; ``Trainer.task`` (what the examples evaluate) keeps the paper's
+        hanging start.
 
     The field defaults are the paper's numbers (4.8e6 env steps per iteration, about 1e9 in all).
     ``CEAPGConfig.laptop(task)`` is the cheaper protocol the examples and ``benchmarks/paper_tables.py
@@ -80,10 +84,14 @@ class CEAPGConfig:
     normalize: bool = True
     truncation: int | None = None
     trig_observation: bool = False
+    upright_starts: float = 0.0
 
     def __post_init__(self):
         check_common(self)
         c = type(self).__name__
+        _check_pos(c, "upright_starts", self.upright_starts, allow_zero=True)
+        if self.upright_starts > 1:
+            raise ValueError(f"{c}.upright_starts must be a probability in [0, 1], got {self.upright_starts!r}")
         _check_int(c, "num_candidates", self.num_candidates, 1)
         _check_int(c, "num_elites", self.num_elites, 1)
         if self.num_elites > self.num_candidates:
@@ -150,6 +158,8 @@ class CEState(NamedTuple):
 def make_trainer(config: CEAPGConfig, task=None) -> Trainer:
     """Init/update pair for the host loop; ``update`` runs one jitted CE iteration."""
     task = build_task(config, task)
+    # episodes the candidates train and are scored on (the upright_starts curriculum); `task` is evaluated
+    train_task = dataclasses.replace(task, upright=config.upright_starts) if config.upright_starts else task
     template = build_policy(config, task, jax.random.PRNGKey(0))
     flat0, unravel = flatten_policy(template)
     P = flat0.size
@@ -169,12 +179,12 @@ def make_trainer(config: CEAPGConfig, task=None) -> Trainer:
     def candidate(theta, k, norm, lr):
         if config.apg_steps == 0:
             policy = unravel(theta)
-            eps = jax.vmap(lambda kk: episode(task, policy, norm, kk))(jax.random.split(k, config.episodes))
+            eps = jax.vmap(lambda kk: episode(train_task, policy, norm, kk))(jax.random.split(k, config.episodes))
             fit = jnp.mean(eps.ret)
             if norm is not None:
                 norm = norm.update(eps.obs)
             return theta, norm, jnp.where(jnp.isfinite(fit), fit, -jnp.inf), ~jnp.isfinite(fit), fit
-        res = apg_steps(task, unravel, theta, norm, k, steps=config.apg_steps, episodes=config.episodes,
+        res = apg_steps(train_task, unravel, theta, norm, k, steps=config.apg_steps, episodes=config.episodes,
                         learning_rate=lr, truncation=config.truncation)
         fit = jnp.mean(res.returns[-config.fitness_window:])
         bad = ~res.finite | ~jnp.isfinite(fit)

@@ -35,6 +35,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
         (lambda: ce_apg.CEAPGConfig(init_std=-0.1), "init_std"),
         (lambda: ce_apg.CEAPGConfig(apg_steps=3, fitness_window=5), "fitness_window"),
         (lambda: ce_apg.CEAPGConfig(policy="transformer"), "policy"),
+        (lambda: ce_apg.CEAPGConfig(upright_starts=1.5), "upright_starts"),
+        (lambda: ce_apg.CEAPGConfig(upright_starts=-0.1), "upright_starts"),
         (lambda: apg.APGConfig(learning_rate=-1.0), "learning_rate"),
         (lambda: apg.APGConfig(episodes=0), "episodes"),
         (lambda: papg.PAPGConfig(num_runs=0), "num_runs"),
@@ -134,6 +136,25 @@ def test_nonfinite_candidates_get_minus_infinity_and_do_not_poison():
     assert bool(jnp.all(jnp.isfinite(state.mean))) and bool(jnp.all(jnp.isfinite(state.std)))
 
 
+
+def test_upright_starts_train_on_balanced_starts_and_evaluate_hanging():
+    """``upright_starts`` changes the episodes candidates are scored on, never the task the trainer evaluates.
+    With a zero policy (mean 0, std 0) a 1 kg pendulum left hanging earns about 10 - pi^2 per step; started
+    upright it earns nearly 10 per step while it slowly starts to topple."""
+    task = chain_swingup(lg.systems.pendulum(gear=5.0), dt=0.05, horizon=20)
+    fitness = {}
+    for p in (0.0, 1.0):
+        cfg = ce_apg.CEAPGConfig(task="custom", num_candidates=2, num_elites=1, iterations=1, apg_steps=0,
+                                 episodes=2, horizon=20, width=4, init_std=0.0, upright_starts=p)
+        trainer = ce_apg.make_trainer(cfg, task)
+        assert trainer.task.upright == 0  # evaluation keeps the hanging start
+        _, metrics = trainer.update(trainer.init(jax.random.PRNGKey(0)))
+        fitness[p] = float(metrics["best_return"])
+    # hanging within ~0.011 rad of straight down (reset noise 0.01 on angle and speed): at most 20 (10 - (pi - 0.011)^2)
+    assert fitness[0.0] <= 20 * (10 - (np.pi - 0.011) ** 2)
+    assert fitness[1.0] > 190  # of 200 for a perfect hold; measured 199.9 (a 0.01 rad tilt grows e^3.8t, ~0.4 rad at 1 s)
+
+
 # --------------------------------------------------------------------------- checkpoints and resume
 TINY = ce_apg.CEAPGConfig(task="acrobot", num_candidates=4, num_elites=2, iterations=3, apg_steps=2, episodes=1,
                           horizon=20, width=4, fitness_window=1, lr_start=1e-2, lr_end=1e-3)
@@ -189,6 +210,22 @@ def test_resume_equals_uninterrupted(tiny_trainer, tmp_path):
     assert not params_equal(resumed.mean, tiny_trainer.init(key).mean)  # it did train
     with pytest.raises(checkpoint.CheckpointError, match="seed"):
         run(tiny_trainer, key, iterations=3, ckpt_path=str(tmp_path / "b.eqx"), resume=True, progress=False, seed=4)
+
+
+def test_resume_a_checkpoint_written_before_a_config_field_existed(tiny_trainer, tmp_path):
+    """A config field added later (``upright_starts``) matches an older checkpoint at its default, and only then."""
+    key = jax.random.PRNGKey(3)
+    path = str(tmp_path / "old.eqx")
+    state, hist = run(tiny_trainer, key, iterations=1, ckpt_path=path, progress=False, seed=3)
+    head = checkpoint.read_header(path)
+    old = {k: v for k, v in head["config"].items() if k != "upright_starts"}
+    checkpoint.save(path, state, config=old, seed=3, iteration=1, history=hist)
+    resumed, hist2 = run(tiny_trainer, key, iterations=2, ckpt_path=path, resume=True, progress=False, seed=3)
+    assert int(resumed.iteration) == 2 and len(hist2) == 2
+    checkpoint.save(path, state, config=old, seed=3, iteration=1, history=hist)
+    other = ce_apg.make_trainer(dataclasses.replace(TINY, upright_starts=0.5))
+    with pytest.raises(checkpoint.CheckpointError, match="upright_starts"):
+        run(other, key, iterations=2, ckpt_path=path, resume=True, progress=False, seed=3)
 
 
 def test_make_train_is_one_jittable_function(tiny_trainer):

@@ -1,6 +1,8 @@
 """The swing-up tasks: resets, angle conventions, observations and rewards by hand, the integrator
 against Dopri8, energy conservation, and the balanced criterion on synthetic trajectories."""
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -22,6 +24,26 @@ def test_reset_hangs_with_bounded_noise(name, n, obs):
     np.testing.assert_allclose(np.abs(th[:, 0]), np.pi - np.abs(s.q[:, 1 if task.cart else 0]), atol=1e-12)
     assert task.observe(jax.tree_util.tree_map(lambda x: x[0], s)).shape == (obs,)
     assert task.horizon == 500
+
+
+def test_upright_fraction_of_starts():
+    """``upright=p`` starts balanced with probability p; p = 0 draws exactly the paper's hanging starts."""
+    keys = jax.random.split(jax.random.PRNGKey(1), 4000)
+    for name in ("acrobot", "double_cartpole"):
+        task = tasks.make_task(name)
+        i = 1 if task.cart else 0
+        paper = jax.vmap(task.reset)(keys)
+        mixed = jax.vmap(dataclasses.replace(task, upright=0.25).reset)(keys)
+        always = jax.vmap(dataclasses.replace(task, upright=1).reset)(keys)
+        up = np.asarray(jnp.abs(jax.vmap(task.angles)(mixed)[:, 0]) < 0.1)
+        assert 0.22 < up.mean() < 0.28  # binomial(4000, 0.25): std 0.007
+        # the same noise either way: only the first pole's angle moves, by exactly pi when upright
+        np.testing.assert_array_equal(mixed.qd, paper.qd)
+        np.testing.assert_allclose(mixed.q[:, i] - paper.q[:, i], np.pi * up, atol=1e-6)
+        np.testing.assert_allclose(always.q[:, i] - paper.q[:, i], np.pi, atol=1e-6)
+        assert bool(jnp.all(jnp.abs(jax.vmap(task.angles)(always)[:, 0]) <= 0.01 + 1e-6))
+    with pytest.raises(ValueError, match="upright"):
+        dataclasses.replace(tasks.acrobot(), upright=1.5)
 
 
 def test_paper_parameters():
