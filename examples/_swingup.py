@@ -26,6 +26,7 @@ from lagrange.tasks import Task, balanced  # noqa: E402
 from optim import ce_apg  # noqa: E402
 from optim._loop import run  # noqa: E402
 from optim.apg import config_to_dict, episode, evaluate  # noqa: E402
+from optim.checkpoint import CheckpointError  # noqa: E402
 from optim.devices import cpu_core_count, use_cpu_cores  # noqa: E402
 
 EVAL_EPISODES = 16
@@ -67,8 +68,11 @@ def main(description: str, default_out: str, config: ce_apg.CEAPGConfig, quick: 
         os.remove(ckpt)
     print(f"CE-APG on {cfg.task}: {cfg.iterations} iterations x {cfg.env_steps_per_iteration():.2e} env steps; "
           f"{len(jax.devices())} device(s); writing to {args.out}")
-    state, history = run(trainer, jax.random.PRNGKey(args.seed), iterations=cfg.iterations, ckpt_path=ckpt,
-                         resume=args.resume, progress=not args.no_progress, seed=args.seed)
+    try:
+        state, history = run(trainer, jax.random.PRNGKey(args.seed), iterations=cfg.iterations, ckpt_path=ckpt,
+                             resume=args.resume, progress=not args.no_progress, seed=args.seed)
+    except CheckpointError as err:
+        raise SystemExit(f"error: cannot resume: {err}") from None
 
     # Ship the better of the best candidate and the CE mean, chosen on selection episodes, then evaluate
     # both deterministically on other random starts (choosing on the reported episodes would flatter the choice).

@@ -49,6 +49,10 @@ def run(trainer, key, *, iterations: int, ckpt_path: str | None = None, resume: 
         history = head.get("history", [])
         elapsed0 = history[-1]["elapsed"] if history else 0.0
     start = int(state.iteration)
+    if start > iterations:
+        raise checkpoint.CheckpointError(
+            f"{ckpt_path} has {start} iterations done, more than the requested iterations={iterations}: "
+            f"ask for iterations >= {start}, or start afresh without resume")
     env_steps = history[-1]["env_steps"] if history else 0.0
     t0 = time.perf_counter()
     bar = tqdm(total=iterations, initial=min(start, iterations), disable=not progress, unit="it",

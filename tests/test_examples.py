@@ -11,11 +11,11 @@ from PIL import Image
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
-def _run(*args):
+def _run(*args, ok=True):
     env = dict(os.environ, MPLBACKEND="Agg")
     proc = subprocess.run([sys.executable, os.path.join(ROOT, "examples", "acrobot_swingup.py"), *args],
                           capture_output=True, text=True, env=env, timeout=900)
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert (proc.returncode == 0) == ok, proc.stderr[-3000:]
     return proc
 
 
@@ -46,3 +46,7 @@ def test_quick_run_writes_every_artefact(tmp_path):
     gif = Image.open(out / "swingup.gif")
     assert gif.n_frames > 50  # the 5-s episode, one frame per 0.05 s
     assert Image.open(out / "swingup.png").size[0] > 300
+    # resuming with another seed (or more iterations done than asked) is refused in one line, not a traceback
+    err = _run("--quick", "--iterations", "1", "--out", str(out), "--seed", "4", "--resume", "--no-progress",
+               ok=False).stderr
+    assert "cannot resume" in err and "seed" in err and "Traceback" not in err

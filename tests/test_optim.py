@@ -210,6 +210,9 @@ def test_resume_equals_uninterrupted(tiny_trainer, tmp_path):
     assert not params_equal(resumed.mean, tiny_trainer.init(key).mean)  # it did train
     with pytest.raises(checkpoint.CheckpointError, match="seed"):
         run(tiny_trainer, key, iterations=3, ckpt_path=str(tmp_path / "b.eqx"), resume=True, progress=False, seed=4)
+    # a shorter run (e.g. --quick) cannot resume a longer one: it would report the longer run as its own
+    with pytest.raises(checkpoint.CheckpointError, match="iterations=2"):
+        run(tiny_trainer, key, iterations=2, ckpt_path=str(tmp_path / "b.eqx"), resume=True, progress=False, seed=3)
 
 
 def test_resume_a_checkpoint_written_before_a_config_field_existed(tiny_trainer, tmp_path):
