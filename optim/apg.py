@@ -9,7 +9,7 @@ plain APG trainer (:class:`APGConfig`, :func:`make_trainer`, :func:`make_train`)
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Callable, NamedTuple
+from typing import Any, Callable, ClassVar, NamedTuple
 
 import equinox as eqx
 import jax
@@ -59,6 +59,45 @@ def log_linear_lr(iteration, iterations: int, lr_start: float, lr_end: float):
     """The CE-APG authors' schedule: ``lr_start^((T - i) / T) * lr_end^(i / T)`` at iteration ``i`` of ``T``."""
     frac = jnp.asarray(iteration, jnp.float32) / iterations
     return jnp.exp((1 - frac) * np.log(lr_start) + frac * np.log(lr_end))
+
+
+@dataclasses.dataclass(frozen=True)
+class InnerAPGConfig:
+    """The fields of the APG inner loop every population member runs, shared by :class:`optim.ce_apg.CEAPGConfig`
+    and :class:`optim.papg.PAPGConfig` (documented there): the task and policy, ``iterations`` of ``apg_steps``
+    Adam steps on ``episodes`` episodes of ``horizon`` steps at a log-linear learning rate from ``lr_start`` to
+    ``lr_end``, fitness over the last ``fitness_window`` batch returns."""
+
+    task: str = "acrobot"
+    iterations: int = 200
+    apg_steps: int = 100
+    episodes: int = 4
+    horizon: int = 500
+    lr_start: float = 1e-3
+    lr_end: float = 1e-6
+    fitness_window: int = 5
+    policy: str = "gru"
+    width: int = 16
+    normalize: bool = True
+    truncation: int | None = None
+    trig_observation: bool = False
+
+    min_apg_steps: ClassVar[int] = 1  # CE-APG allows 0: the plain cross-entropy method
+
+    def __post_init__(self):
+        check_common(self)
+        c = type(self).__name__
+        _check_int(c, "iterations", self.iterations, 1)
+        _check_int(c, "apg_steps", self.apg_steps, self.min_apg_steps)
+        _check_pos(c, "lr_start", self.lr_start)
+        _check_pos(c, "lr_end", self.lr_end)
+        _check_int(c, "fitness_window", self.fitness_window, 1)
+        if self.apg_steps and self.fitness_window > self.apg_steps:
+            raise ValueError(f"{c}.fitness_window must be <= apg_steps ({self.apg_steps}), got {self.fitness_window}")
+
+    def learning_rate(self, iteration):
+        """Log-linear from ``lr_start`` at iteration 0 to ``lr_end`` at ``iterations`` (constant within one)."""
+        return log_linear_lr(iteration, self.iterations, self.lr_start, self.lr_end)
 
 
 def config_to_dict(cfg) -> dict:
@@ -296,11 +335,15 @@ def make_trainer(config: APGConfig, task: Task | None = None) -> Trainer:
     return Trainer(init, eqx.filter_jit(update), policy, task, config)
 
 
-def make_train(config: APGConfig, task: Task | None = None):
-    """``train(key) -> (final state, stacked metrics)``: the whole run as one jittable function."""
-    trainer = make_trainer(config, task)
+def scan_train(trainer: Trainer, iterations: int):
+    """``train(key) -> (final state, stacked metrics)``: ``iterations`` of ``trainer.update`` as one jittable function."""
 
     def train(key):
-        return jax.lax.scan(lambda s, _: trainer.update(s), trainer.init(key), None, config.iterations)
+        return jax.lax.scan(lambda s, _: trainer.update(s), trainer.init(key), None, iterations)
 
     return train
+
+
+def make_train(config: APGConfig, task: Task | None = None):
+    """``train(key) -> (final state, stacked metrics)``: the whole run as one jittable function."""
+    return scan_train(make_trainer(config, task), config.iterations)

@@ -14,30 +14,30 @@ With ``apg_steps = 0`` the same loop is the plain cross-entropy method (see :mod
 from __future__ import annotations
 
 import dataclasses
-from typing import NamedTuple
+from typing import ClassVar, NamedTuple
 
 import jax
 import jax.numpy as jnp
 from jax.sharding import NamedSharding, PartitionSpec
 
 from optim.apg import (
+    InnerAPGConfig,
     Trainer,
     _check_int,
     _check_pos,
     apg_steps,
     build_policy,
     build_task,
-    check_common,
     episode,
     flatten_policy,
-    log_linear_lr,
+    scan_train,
 )
-from optim.devices import candidate_mesh
+from optim.devices import candidate_mesh, jit_replicated
 from policies import Normalizer
 
 
 @dataclasses.dataclass(frozen=True)
-class CEAPGConfig:
+class CEAPGConfig(InnerAPGConfig):
     """CE-APG configuration. ``CEAPGConfig.paper(task)`` is the authors' protocol; the defaults
     are this project's cheaper acrobot protocol (deviations listed below).
 
@@ -68,43 +68,25 @@ class CEAPGConfig:
     --budget laptop`` run (fewer elites, APG steps, episodes and iterations, a larger early learning rate).
     """
 
-    task: str = "acrobot"
     num_candidates: int = 24
     num_elites: int = 8
-    iterations: int = 200
-    apg_steps: int = 100
-    episodes: int = 4
-    horizon: int = 500
     init_std: float = 0.05
-    lr_start: float = 1e-3
-    lr_end: float = 1e-6
-    fitness_window: int = 5
-    policy: str = "gru"
-    width: int = 16
-    normalize: bool = True
-    truncation: int | None = None
-    trig_observation: bool = False
     upright_starts: float = 0.0
 
+    min_apg_steps: ClassVar[int] = 0  # apg_steps = 0 is the plain cross-entropy method (optim.cem)
+
     def __post_init__(self):
-        check_common(self)
+        super().__post_init__()
         c = type(self).__name__
-        _check_pos(c, "upright_starts", self.upright_starts, allow_zero=True)
-        if self.upright_starts > 1:
-            raise ValueError(f"{c}.upright_starts must be a probability in [0, 1], got {self.upright_starts!r}")
         _check_int(c, "num_candidates", self.num_candidates, 1)
         _check_int(c, "num_elites", self.num_elites, 1)
         if self.num_elites > self.num_candidates:
             raise ValueError(
                 f"{c}.num_elites must be <= num_candidates ({self.num_candidates}), got {self.num_elites}")
-        _check_int(c, "iterations", self.iterations, 1)
-        _check_int(c, "apg_steps", self.apg_steps, 0)
         _check_pos(c, "init_std", self.init_std, allow_zero=True)
-        _check_pos(c, "lr_start", self.lr_start)
-        _check_pos(c, "lr_end", self.lr_end)
-        _check_int(c, "fitness_window", self.fitness_window, 1)
-        if self.apg_steps and self.fitness_window > self.apg_steps:
-            raise ValueError(f"{c}.fitness_window must be <= apg_steps ({self.apg_steps}), got {self.fitness_window}")
+        _check_pos(c, "upright_starts", self.upright_starts, allow_zero=True)
+        if self.upright_starts > 1:
+            raise ValueError(f"{c}.upright_starts must be a probability in [0, 1], got {self.upright_starts!r}")
 
     @classmethod
     def paper(cls, task: str = "acrobot", **overrides) -> "CEAPGConfig":
@@ -136,10 +118,6 @@ class CEAPGConfig:
 
     def env_steps_per_iteration(self) -> int:
         return self.num_candidates * max(self.apg_steps, 1) * self.episodes * self.horizon
-
-    def learning_rate(self, iteration):
-        """Log-linear from ``lr_start`` at iteration 0 to ``lr_end`` at ``iterations`` (constant within one)."""
-        return log_linear_lr(iteration, self.iterations, self.lr_start, self.lr_end)
 
 
 class CEState(NamedTuple):
@@ -236,20 +214,9 @@ def make_trainer(config: CEAPGConfig, task=None) -> Trainer:
             return unravel(state.mean), state.normalizer
         return unravel(state.best), state.best_normalizer
 
-    jitted = jax.jit(update, out_shardings=replicated)
-
-    def update_replicated(state):
-        # The state lives replicated on every device; placing it there first keeps one jit cache entry.
-        return jitted(jax.device_put(state, replicated))
-
-    return Trainer(init, update_replicated, policy, task, config)
+    return Trainer(init, jit_replicated(update, replicated), policy, task, config)
 
 
 def make_train(config: CEAPGConfig, task=None):
     """``train(key) -> (final CEState, per-iteration metrics)``: the whole run as one jittable function."""
-    trainer = make_trainer(config, task)
-
-    def train(key):
-        return jax.lax.scan(lambda s, _: trainer.update(s), trainer.init(key), None, config.iterations)
-
-    return train
+    return scan_train(make_trainer(config, task), config.iterations)

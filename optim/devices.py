@@ -18,7 +18,7 @@ from __future__ import annotations
 import os
 import warnings
 
-__all__ = ["use_cpu_cores", "cpu_core_count", "candidate_mesh"]
+__all__ = ["use_cpu_cores", "cpu_core_count", "candidate_mesh", "jit_replicated"]
 
 
 def cpu_core_count() -> int:
@@ -62,3 +62,16 @@ def candidate_mesh(num_candidates: int):
     from jax.sharding import Mesh
 
     return Mesh(np.asarray(jax.devices()[:max(1, num_candidates)]), ("candidates",))
+
+
+def jit_replicated(update, replicated):
+    """``jax.jit(update)`` for a state that lives replicated on every device (``replicated``: a ``NamedSharding``
+    with an empty ``PartitionSpec``): the state is placed there before each call, which keeps one jit cache entry."""
+    import jax
+
+    jitted = jax.jit(update, out_shardings=replicated)
+
+    def update_replicated(state):
+        return jitted(jax.device_put(state, replicated))
+
+    return update_replicated

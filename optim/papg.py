@@ -16,49 +16,25 @@ import jax
 import jax.numpy as jnp
 from jax.sharding import NamedSharding, PartitionSpec
 
-from optim.apg import (Trainer, _check_int, _check_pos, apg_steps, build_policy, build_task, check_common,
-                       flatten_policy, log_linear_lr)
-from optim.devices import candidate_mesh
+from optim.apg import (InnerAPGConfig, Trainer, _check_int, apg_steps, build_policy, build_task, flatten_policy,
+                       scan_train)
+from optim.devices import candidate_mesh, jit_replicated
 from policies import Normalizer
 
 
 @dataclasses.dataclass(frozen=True)
-class PAPGConfig:
-    """Fields as in :class:`optim.ce_apg.CEAPGConfig`; ``num_runs`` independent runs [24]."""
+class PAPGConfig(InnerAPGConfig):
+    """Fields as in :class:`optim.ce_apg.CEAPGConfig` (the shared ones in :class:`optim.apg.InnerAPGConfig`);
+    ``num_runs`` independent runs [24]."""
 
-    task: str = "acrobot"
     num_runs: int = 24
-    iterations: int = 200
-    apg_steps: int = 100
-    episodes: int = 4
-    horizon: int = 500
-    lr_start: float = 1e-3
-    lr_end: float = 1e-6
-    fitness_window: int = 5
-    policy: str = "gru"
-    width: int = 16
-    normalize: bool = True
-    truncation: int | None = None
-    trig_observation: bool = False
 
     def __post_init__(self):
-        check_common(self)
-        c = type(self).__name__
-        _check_int(c, "num_runs", self.num_runs, 1)
-        _check_int(c, "iterations", self.iterations, 1)
-        _check_int(c, "apg_steps", self.apg_steps, 1)
-        _check_pos(c, "lr_start", self.lr_start)
-        _check_pos(c, "lr_end", self.lr_end)
-        _check_int(c, "fitness_window", self.fitness_window, 1)
-        if self.fitness_window > self.apg_steps:
-            raise ValueError(f"{c}.fitness_window must be <= apg_steps ({self.apg_steps}), got {self.fitness_window}")
+        super().__post_init__()
+        _check_int(type(self).__name__, "num_runs", self.num_runs, 1)
 
     def env_steps_per_iteration(self) -> int:
         return self.num_runs * self.apg_steps * self.episodes * self.horizon
-
-    def learning_rate(self, iteration):
-        """Log-linear from ``lr_start`` at iteration 0 to ``lr_end`` at ``iterations`` (constant within one)."""
-        return log_linear_lr(iteration, self.iterations, self.lr_start, self.lr_end)
 
 
 class PAPGState(NamedTuple):
@@ -117,19 +93,9 @@ def make_trainer(config: PAPGConfig, task=None) -> Trainer:
         norm = jax.tree_util.tree_map(lambda x: x[i], state.normalizers)
         return unravel(state.params[i]), norm
 
-    jitted = jax.jit(update, out_shardings=replicated)
-
-    def update_replicated(state):
-        # The state lives replicated on every device; placing it there first keeps one jit cache entry.
-        return jitted(jax.device_put(state, replicated))
-
-    return Trainer(init, update_replicated, policy, task, config)
+    return Trainer(init, jit_replicated(update, replicated), policy, task, config)
 
 
 def make_train(config: PAPGConfig, task=None):
-    trainer = make_trainer(config, task)
-
-    def train(key):
-        return jax.lax.scan(lambda s, _: trainer.update(s), trainer.init(key), None, config.iterations)
-
-    return train
+    """``train(key) -> (final state, per-iteration metrics)``: the whole run as one jittable function."""
+    return scan_train(make_trainer(config, task), config.iterations)
