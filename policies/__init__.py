@@ -1,7 +1,9 @@
-"""Policies for the tasks of :mod:`lagrange.tasks`: the authors' GRU, an MLP, and an observation normaliser."""
+"""Policies for the tasks of :mod:`lagrange.tasks`: the authors' GRU, an MLP, SHAC's actor and critic, and an
+observation normaliser."""
 
+from policies.actor_critic import Actor, Critic, DeterministicPolicy
 from policies.gru import GRUPolicy
 from policies.mlp import MLPPolicy
 from policies.normalizer import Normalizer
 
-__all__ = ["GRUPolicy", "MLPPolicy", "Normalizer"]
+__all__ = ["GRUPolicy", "MLPPolicy", "Normalizer", "Actor", "Critic", "DeterministicPolicy"]

@@ -1,4 +1,4 @@
-"""SHAC (optim/shac.py) and the SHAC authors' cartpole (lagrange/shac_cartpole.py).
+"""SHAC (optim/shac/, its networks in policies/actor_critic.py) and the SHAC authors' cartpole (lagrange/shac_cartpole.py).
 
 Each piece is checked against an independent computation: TD(lambda) targets against the explicit
 lambda-weighted sum of n-step returns, the window loss against its definition computed by a plain

@@ -1,0 +1,117 @@
+"""The pieces of a SHAC epoch as pure functions: TD(lambda) targets, the target critic's soft update and the
+actor's short-horizon loss."""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import optax
+
+from policies.actor_critic import Actor, Critic
+
+
+def td_lambda_targets(rewards, next_values, dones, gamma: float, lam: float):
+    """TD(lambda) value targets of one window, truncated at episode ends and at the window's end.
+
+    ``rewards`` (T, N): reward of step t; ``next_values`` (T, N): the (target) critic's value of the
+    state step t lands in; ``dones`` (T, N) bool: an episode ends at step t (the last row is treated
+    as done: the window ends). Returns (T, N) targets ``G_t = r_t + gamma V_{t+1}`` where ``done_t``,
+    else ``G_t = r_t + gamma ((1 - lam) V_{t+1} + lam G_{t+1})`` -- the lambda-weighted average of the
+    n-step returns ``(1 - lam) sum_n lam^(n-1) G^(n) + lam^(k-1) G^(k)`` up to the next end at k steps.
+    """
+    dones = jnp.asarray(dones, bool).at[-1].set(True)
+
+    def body(g_next, x):
+        r, v, d = x
+        g = r + gamma * jnp.where(d, v, (1 - lam) * v + lam * g_next)
+        return g, g
+
+    _, g = jax.lax.scan(body, jnp.zeros_like(rewards[-1]), (rewards, next_values, dones), reverse=True)
+    return g
+
+
+def soft_update(target, online, alpha: float):
+    """``alpha target + (1 - alpha) online`` leaf by leaf (the authors' target critic update)."""
+    return jax.tree_util.tree_map(lambda t, o: alpha * t + (1 - alpha) * o, target, online)
+
+
+def clip_grad_norm(grads, max_norm):
+    """PyTorch's ``clip_grad_norm_``: scale by ``min(1, max_norm / (norm + 1e-6))``; returns (grads, norm)."""
+    norm = optax.tree.norm(grads)
+    if max_norm is None:
+        return grads, norm
+    coef = jnp.minimum(1.0, max_norm / (norm + 1e-6))
+    return jax.tree_util.tree_map(lambda g: g * coef, grads), norm
+
+
+class Window(NamedTuple):
+    """What the actor's rollout leaves for the critic and the logs (all without gradient)."""
+
+    obs: jax.Array  # (h, N, obs) normalised observations at the start of each step
+    rewards: jax.Array  # (h, N)
+    dones: jax.Array  # (h, N) bool, an episode ended at this step
+    next_values: jax.Array  # (h, N) target critic's value of the state each step lands in (pre-reset)
+    raw_obs: jax.Array  # (h + 1, N, obs) raw observations for the running statistics
+    env_state: Any  # TaskState (N, n) after the window (after resets)
+    progress: jax.Array  # (N,) steps into the current episode
+    ep_return: jax.Array  # (N,) undiscounted return so far of the current episode
+    finished_return: jax.Array  # () sum of the returns of the episodes that ended in the window
+    finished: jax.Array  # () how many ended
+
+
+def actor_loss(actor: Actor, target_critic: Critic, normalizer, task, env_state, progress, ep_return, key, *,
+               short_horizon: int, horizon: int, gamma: float):
+    """The SHAC actor loss of one window and its :class:`Window` (``has_aux`` style).
+
+    ``env_state`` (batched TaskState, N envs) is cut from the graph at the window's start;
+    episodes that reach ``horizon`` inside the window are bootstrapped with the target critic's value
+    of their last state and reset, the gradient cut.
+    """
+    n = progress.shape[0]
+    env_state = jax.lax.stop_gradient(env_state)
+    norm = (lambda o: o) if normalizer is None else normalizer
+    observe = jax.vmap(task.observe)
+    obs0 = observe(env_state)
+    dtype = obs0.dtype
+    k_act, k_reset = jax.random.split(key)
+
+    def body(carry, i):
+        s, prog, rew_acc, disc, ep_ret, loss, fin_ret, fin = carry
+        o = norm(observe(s))
+        keys = jax.random.split(jax.random.fold_in(k_act, i), n)
+        a = jax.vmap(actor.sample)(o, keys)
+        s2 = jax.vmap(task.step)(s, a)
+        r = jax.vmap(task.reward)(s, a, s2)
+        prog = prog + 1
+        done = prog >= horizon
+        v = jax.vmap(target_critic)(norm(observe(s2)))
+        rew_acc = rew_acc + disc * r
+        term = -rew_acc - gamma * disc * v
+        closes = done | (i == short_horizon - 1)
+        loss = loss + jnp.sum(jnp.where(closes, term, 0.0))
+        disc = jnp.where(done, 1.0, disc * gamma)
+        rew_acc = jnp.where(done, 0.0, rew_acc)
+        r_sg = jax.lax.stop_gradient(r)
+        ep_ret = ep_ret + r_sg
+        fin_ret = fin_ret + jnp.sum(jnp.where(done, ep_ret, 0.0))
+        fin = fin + jnp.sum(done, dtype=jnp.int32)
+        ep_ret = jnp.where(done, 0.0, ep_ret)
+        fresh = jax.lax.stop_gradient(jax.vmap(task.reset)(jax.random.split(jax.random.fold_in(k_reset, i), n)))
+        pick = lambda new, old: jnp.where(done.reshape(done.shape + (1,) * (old.ndim - 1)), new, old)
+        s2 = jax.tree_util.tree_map(pick, fresh, s2)
+        prog = jnp.where(done, 0, prog)
+        out = (jax.lax.stop_gradient(o), r_sg, done, jax.lax.stop_gradient(v),
+               jax.lax.stop_gradient(observe(s2)))
+        return (s2, prog, rew_acc, disc, ep_ret, loss, fin_ret, fin), out
+
+    zeros = jnp.zeros(n, dtype)
+    init = (env_state, progress, zeros, jnp.ones(n, dtype), ep_return, jnp.zeros((), dtype), jnp.zeros((), dtype),
+            jnp.zeros((), jnp.int32))
+    (s, prog, _, _, ep_ret, loss, fin_ret, fin), (obs, rew, done, nv, raw) = jax.lax.scan(
+        body, init, jnp.arange(short_horizon))
+    loss = loss / (short_horizon * n)
+    raw = jnp.concatenate([jax.lax.stop_gradient(obs0)[None], raw])
+    window = Window(obs, rew, done, nv, raw, jax.lax.stop_gradient(s), prog, ep_ret, fin_ret, fin)
+    return loss, window

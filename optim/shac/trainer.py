@@ -1,0 +1,189 @@
+"""SHAC's trainer: ``make_trainer(config) -> init/update`` (one jitted epoch) and ``make_train(config) -> train(key)``."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Callable, NamedTuple
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import optax
+
+from lagrange.tasks import TaskState, balanced
+from optim.shac.config import SHACConfig, make_task
+from optim.shac.losses import actor_loss, clip_grad_norm, soft_update, td_lambda_targets
+from policies import Normalizer
+from policies.actor_critic import Actor, Critic, DeterministicPolicy
+
+
+class SHACState(NamedTuple):
+    actor: Actor
+    critic: Critic
+    target_critic: Critic
+    actor_opt: Any
+    critic_opt: Any
+    normalizer: Normalizer | None
+    env_state: TaskState  # (N, n) batched
+    progress: jax.Array  # (N,) int32
+    ep_return: jax.Array  # (N,)
+    key: jax.Array  # the run's key; epoch e draws from fold_in(key, e)
+    iteration: jax.Array  # () int32, epochs done
+
+
+class Trainer(NamedTuple):
+    """``init(key) -> state``, ``update(state) -> (state, metrics)`` (one jitted epoch),
+    ``policy(state) -> (DeterministicPolicy, normalizer)``, ``evaluate(state, key, episodes) ->
+    (returns, balanced)``, the task and the config."""
+
+    init: Callable
+    update: Callable
+    policy: Callable
+    evaluate: Callable
+    task: Any
+    config: SHACConfig
+
+
+def _build_task(config: SHACConfig, task):
+    if task is None:
+        if config.task == "custom":
+            raise ValueError("SHACConfig.task is 'custom': pass the task to make_trainer(config, task)")
+        task = make_task(config.task)
+    if config.horizon is not None and config.horizon != task.horizon:
+        task = dataclasses.replace(task, horizon=config.horizon)
+    return task
+
+
+def _normalizer(size, dtype):
+    # The authors' RunningMeanStd: (x - mean) / sqrt(var + 1e-5), no clipping.
+    return Normalizer(jnp.zeros(size, dtype), jnp.ones(size, dtype), jnp.zeros((), dtype), clip=float("inf"),
+                      eps=1e-5)
+
+
+def make_trainer(config: SHACConfig, task=None) -> Trainer:
+    """Init/update pair of SHAC on ``task`` (default: ``config.task``); ``update`` is one jitted epoch."""
+    task = _build_task(config, task)
+    N, h, T = config.num_envs, config.short_horizon, task.horizon
+    adam = optax.scale_by_adam(b1=config.adam_b1, b2=config.adam_b2, eps=config.adam_eps)
+    obs_size = task.observation_size
+    B = N * h
+    mb = -(-B // config.critic_minibatches)  # the authors' batch size: ceil-split into contiguous slices
+    bounds = [(i * mb, min((i + 1) * mb, B)) for i in range(config.critic_minibatches) if i * mb < B]
+    equal = all(hi - lo == mb for lo, hi in bounds)
+
+    def init(key) -> SHACState:
+        k_actor, k_critic, k_env = jax.random.split(jax.random.fold_in(key, 0x5EED), 3)
+        dtype = jnp.result_type(task.chain.mass)
+        actor = Actor(obs_size, task.action_size, config.actor_units, config.init_log_std, key=k_actor, dtype=dtype)
+        critic = Critic(obs_size, config.critic_units, key=k_critic, dtype=dtype)
+        env_state = jax.vmap(task.reset)(jax.random.split(k_env, N))
+        norm = _normalizer(obs_size, dtype) if config.normalize else None
+        return SHACState(actor, critic, critic, adam.init(eqx.filter(actor, eqx.is_array)),
+                         adam.init(eqx.filter(critic, eqx.is_array)), norm, env_state,
+                         jnp.zeros(N, jnp.int32), jnp.zeros(N, dtype), jnp.asarray(key), jnp.asarray(0, jnp.int32))
+
+    def critic_loss(critic, obs, target):
+        return jnp.mean((jax.vmap(critic)(obs) - target) ** 2)
+
+    def update(state: SHACState):
+        key = jax.random.fold_in(state.key, state.iteration)
+        actor_lr, critic_lr = config.learning_rates(state.iteration)
+
+        # 1. actor: one clipped Adam step on the window's loss
+        def loss_fn(actor):
+            return actor_loss(actor, state.target_critic, state.normalizer, task, state.env_state, state.progress,
+                              state.ep_return, key, short_horizon=h, horizon=T, gamma=config.gamma)
+
+        (loss, win), g = eqx.filter_value_and_grad(loss_fn, has_aux=True)(state.actor)
+        g, gnorm = clip_grad_norm(g, config.actor_grad_norm)
+        actor_ok = jnp.isfinite(loss) & jnp.isfinite(gnorm)
+        upd, actor_opt = adam.update(jax.tree_util.tree_map(lambda x: jnp.where(actor_ok, x, 0.0), g),
+                                     state.actor_opt)
+        new_actor = eqx.apply_updates(state.actor, jax.tree_util.tree_map(lambda u: -actor_lr * u, upd))
+        keep = lambda new, old: jax.tree_util.tree_map(lambda a, b: jnp.where(actor_ok, a, b), new, old)
+        actor, actor_opt = keep(new_actor, state.actor), keep(actor_opt, state.actor_opt)
+
+        # 2. critic: TD(lambda) targets, critic_iterations x minibatches of clipped Adam on the MSE
+        targets = td_lambda_targets(win.rewards, win.next_values, win.dones, config.gamma, config.lam)
+        obs_flat = win.obs.reshape(B, obs_size)
+        tgt_flat = targets.reshape(B)
+
+        def critic_step(carry, batch):
+            critic, opt, bad = carry
+            obs_b, tgt_b = batch
+            value, cg = eqx.filter_value_and_grad(critic_loss)(critic, obs_b, tgt_b)
+            cg = jax.tree_util.tree_map(lambda x: jnp.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0), cg)
+            cg, _ = clip_grad_norm(cg, config.critic_grad_norm)
+            cu, opt = adam.update(cg, opt)
+            critic = eqx.apply_updates(critic, jax.tree_util.tree_map(lambda u: -critic_lr * u, cu))
+            return (critic, opt, bad + (~jnp.isfinite(value)).astype(jnp.int32)), value
+
+        def critic_pass(carry, _):
+            if equal:  # equal contiguous minibatches: one scanned step
+                carry, values = jax.lax.scan(critic_step, carry, (
+                    obs_flat.reshape(len(bounds), mb, obs_size), tgt_flat.reshape(len(bounds), mb)))
+                return carry, jnp.mean(values)
+            values = []
+            for lo, hi in bounds:  # static, contiguous, unshuffled slices of unequal sizes
+                carry, v = critic_step(carry, (obs_flat[lo:hi], tgt_flat[lo:hi]))
+                values.append(v)
+            return carry, jnp.mean(jnp.stack(values))
+
+        (critic, critic_opt, critic_bad), value_losses = jax.lax.scan(
+            critic_pass, (state.critic, state.critic_opt, jnp.asarray(0, jnp.int32)), None,
+            config.critic_iterations)
+        value_loss = value_losses[-1] if config.critic_iterations else jnp.asarray(jnp.nan, obs_flat.dtype)
+
+        # 3. target critic, running statistics
+        target = soft_update(state.target_critic, critic, config.target_alpha)
+        norm = state.normalizer
+        if norm is not None:  # skipped for a window that saw a non-finite observation
+            obs_ok = jnp.all(jnp.isfinite(win.raw_obs))
+            norm = jax.tree_util.tree_map(lambda a, b: jnp.where(obs_ok, a, b), norm.update(win.raw_obs), norm)
+        finished = win.finished
+        metrics = {
+            "actor_loss": loss,
+            "value_loss": value_loss,
+            "grad_norm": gnorm,
+            "episodes": finished.astype(jnp.float32),
+            "episode_return": jnp.where(finished > 0, win.finished_return / jnp.maximum(finished, 1), jnp.nan),
+            "mean_reward": jnp.mean(win.rewards),
+            "actor_lr": actor_lr,
+            "log_std": jnp.mean(actor.log_std),
+            "nonfinite": (~actor_ok).astype(jnp.int32) + critic_bad,
+            "env_steps": jnp.asarray(N * h, jnp.float32),
+        }
+        # An environment whose state went non-finite restarts (counted), instead of poisoning later windows.
+        env_state, progress, ep_return = win.env_state, win.progress, win.ep_return
+        broken = ~jnp.all(jnp.isfinite(env_state.q) & jnp.isfinite(env_state.qd), axis=-1)
+        fresh = jax.vmap(task.reset)(jax.random.split(jax.random.fold_in(key, 0xBAD), N))
+        env_state = jax.tree_util.tree_map(lambda f, o: jnp.where(broken[:, None], f, o), fresh, env_state)
+        progress = jnp.where(broken, 0, progress)
+        ep_return = jnp.where(broken, 0.0, ep_return)
+        metrics["restarted_envs"] = jnp.sum(broken, dtype=jnp.int32)
+        new = SHACState(actor, critic, target, actor_opt, critic_opt, norm, env_state, progress,
+                        ep_return, state.key, state.iteration + 1)
+        return new, metrics
+
+    def policy(state: SHACState):
+        return DeterministicPolicy(state.actor), state.normalizer
+
+    def evaluate(state: SHACState, key, episodes: int):
+        """Deterministic returns (episodes,) and balanced flags (episodes,) from ``episodes`` random starts."""
+        from optim.apg import episode
+
+        pol, norm = policy(state)
+        eps = jax.vmap(lambda k: episode(task, pol, norm, k))(jax.random.split(key, episodes))
+        return eps.ret, balanced(task, eps.q)
+
+    return Trainer(init, eqx.filter_jit(update), policy, eqx.filter_jit(evaluate), task, config)
+
+
+def make_train(config: SHACConfig, task=None):
+    """``train(key) -> (final SHACState, per-epoch metrics)``: the whole run as one jittable function."""
+    trainer = make_trainer(config, task)
+
+    def train(key):
+        return jax.lax.scan(lambda s, _: trainer.update(s), trainer.init(key), None, config.epochs)
+
+    return train

@@ -1,0 +1,98 @@
+"""SHAC's actor and critic (Xu et al. 2022, as in NVlabs/DiffRL): MLPs ``[64, 64]`` of Linear -> ELU -> LayerNorm.
+
+The actor's output layer is linear (the mean) and its log-std a state-independent vector initialised to
+-1; its layers keep equinox's default (PyTorch-style uniform) initialisation. The critic's layers are
+orthogonal with gain sqrt(2) and zero biases, as in the authors' code. :class:`DeterministicPolicy` gives
+the actor's evaluation action the rollout interface of the other policies here.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+__all__ = ["Actor", "Critic", "DeterministicPolicy"]
+
+
+class _MLP(eqx.Module):
+    """Linear -> ELU -> LayerNorm for each hidden layer, then a linear output (all non-arrays static)."""
+
+    hidden: tuple
+    norms: tuple
+    out: eqx.nn.Linear
+
+    def __init__(self, in_size: int, out_size: int, units: tuple[int, ...], *, orthogonal_gain: float | None, key,
+                 dtype=None):
+        keys = jax.random.split(key, len(units) + 1)
+        sizes = (in_size,) + tuple(units)
+        layers = [eqx.nn.Linear(a, b, dtype=dtype, key=k) for a, b, k in zip(sizes[:-1], sizes[1:], keys)]
+        out = eqx.nn.Linear(sizes[-1], out_size, dtype=dtype, key=keys[-1])
+        if orthogonal_gain is not None:  # the authors' critic: orthogonal weights, zero biases
+            init = jax.nn.initializers.orthogonal(orthogonal_gain)
+
+            def ortho(lin, k):
+                w = init(k, lin.weight.shape, lin.weight.dtype)
+                return eqx.tree_at(lambda m: (m.weight, m.bias), lin, (w, jnp.zeros_like(lin.bias)))
+
+            wkeys = jax.random.split(jax.random.fold_in(key, 1), len(units) + 1)
+            layers = [ortho(lin, k) for lin, k in zip(layers, wkeys)]
+            out = ortho(out, wkeys[-1])
+        self.hidden = tuple(layers)
+        self.norms = tuple(eqx.nn.LayerNorm(u, eps=1e-5, dtype=dtype) for u in units)
+        self.out = out
+
+    def __call__(self, x):
+        for lin, norm in zip(self.hidden, self.norms):
+            x = norm(jax.nn.elu(lin(x)))
+        return self.out(x)
+
+
+class Actor(eqx.Module):
+    """Stochastic tanh-Gaussian actor: ``a = tanh(mu(obs) + exp(log_std) eps)``, ``eps ~ N(0, I)``;
+    ``log_std`` (action_size,) does not depend on the state. ``obs`` is the normalised observation."""
+
+    mu: _MLP
+    log_std: jax.Array
+
+    def __init__(self, obs_size: int, action_size: int, units=(64, 64), init_log_std: float = -1.0, *, key,
+                 dtype=None):
+        self.mu = _MLP(obs_size, action_size, tuple(units), orthogonal_gain=None, key=key, dtype=dtype)
+        self.log_std = jnp.full(action_size, init_log_std, self.mu.out.weight.dtype)
+
+    def sample(self, obs, key):
+        """A reparameterised stochastic action in (-1, 1) (differentiable in the parameters and ``obs``)."""
+        mu = self.mu(obs)
+        eps = jax.random.normal(key, mu.shape, mu.dtype)
+        return jnp.tanh(mu + jnp.exp(self.log_std) * eps)
+
+    def deterministic(self, obs):
+        """The evaluation action ``tanh(mu(obs))``."""
+        return jnp.tanh(self.mu(obs))
+
+
+class Critic(eqx.Module):
+    """State-value critic ``V(obs)`` (scalar) on normalised observations."""
+
+    net: _MLP
+
+    def __init__(self, obs_size: int, units=(64, 64), *, key, dtype=None):
+        self.net = _MLP(obs_size, 1, tuple(units), orthogonal_gain=float(np.sqrt(2.0)), key=key, dtype=dtype)
+
+    def __call__(self, obs):
+        return self.net(obs)[0]
+
+
+class DeterministicPolicy(eqx.Module):
+    """The actor's evaluation policy with the rollout interface of :mod:`policies`
+    (``policy(obs, hidden, reset) -> (action, hidden)``, a (0,)-sized hidden state)."""
+
+    actor: Actor
+    hidden_size: int = eqx.field(static=True, default=0)
+
+    def initial_state(self):
+        return jnp.zeros(0, self.actor.log_std.dtype)
+
+    def __call__(self, obs, hidden, reset=False):
+        return self.actor.deterministic(obs), hidden
