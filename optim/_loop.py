@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import time
 
@@ -36,7 +37,8 @@ def run(trainer, key, *, iterations: int, ckpt_path: str | None = None, resume: 
         head = checkpoint.read_header(ckpt_path)
         if isinstance(head.get("config"), dict):
             saved = head["config"]
-            defaults = {f.name: f.default for f in dataclasses.fields(trainer.config)}
+            defaults = json.loads(json.dumps({f.name: f.default for f in dataclasses.fields(trainer.config)
+                                             if f.default is not dataclasses.MISSING}))
             config_check = {k: v for k, v in config.items()
                             if k in saved or k not in defaults or v != defaults[k]}
             config_check["iterations"] = saved.get("iterations")

@@ -9,6 +9,7 @@ plain APG trainer (:class:`APGConfig`, :func:`make_trainer`, :func:`make_train`)
 from __future__ import annotations
 
 import dataclasses
+import json
 from typing import Any, Callable, ClassVar, NamedTuple
 
 import equinox as eqx
@@ -101,7 +102,8 @@ class InnerAPGConfig:
 
 
 def config_to_dict(cfg) -> dict:
-    return {"algorithm": type(cfg).__name__, **dataclasses.asdict(cfg)}
+    """The config as the JSON a checkpoint header stores (tuples become lists), so it compares equal after a round trip."""
+    return json.loads(json.dumps({"algorithm": type(cfg).__name__, **dataclasses.asdict(cfg)}))
 
 
 def build_task(cfg, task: Task | None = None) -> Task:

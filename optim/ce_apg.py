@@ -14,6 +14,7 @@ With ``apg_steps = 0`` the same loop is the plain cross-entropy method (see :mod
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import ClassVar, NamedTuple
 
 import jax
@@ -62,6 +63,13 @@ class CEAPGConfig(InnerAPGConfig):
         hanging, a curriculum that shows every candidate the balance it must end in [0]. Fitness
         counts those episodes too; ``Trainer.task`` (what the examples evaluate) keeps the paper's
         hanging start.
+      warmup_horizons, warmup_iterations, warmup_upright: a curriculum of training-episode lengths
+        [(), none]. The first ``len(warmup_horizons) * warmup_iterations`` of the ``iterations`` train
+        and score candidates on episodes of ``warmup_horizons[0]``, then ``[1]``, ... control steps
+        (``warmup_iterations`` each) that start upright with probability ``warmup_upright``; the
+        rest use ``horizon`` and ``upright_starts``. The learning-rate schedule runs across all
+        iterations. BPTT through 500 steps of an unstable chain does not learn even to balance it
+        from upright (``benchmarks/balance_horizon.py``); growing the horizon from 100 steps does.
 
     The field defaults are the paper's numbers (4.8e6 env steps per iteration, about 1e9 in all).
     ``CEAPGConfig.laptop(task)`` is the cheaper protocol the examples and ``benchmarks/paper_tables.py
@@ -72,6 +80,9 @@ class CEAPGConfig(InnerAPGConfig):
     num_elites: int = 8
     init_std: float = 0.05
     upright_starts: float = 0.0
+    warmup_horizons: tuple[int, ...] = ()
+    warmup_iterations: int = 15
+    warmup_upright: float = 1.0
 
     min_apg_steps: ClassVar[int] = 0  # apg_steps = 0 is the plain cross-entropy method (optim.cem)
 
@@ -87,6 +98,21 @@ class CEAPGConfig(InnerAPGConfig):
         _check_pos(c, "upright_starts", self.upright_starts, allow_zero=True)
         if self.upright_starts > 1:
             raise ValueError(f"{c}.upright_starts must be a probability in [0, 1], got {self.upright_starts!r}")
+        if isinstance(self.warmup_horizons, (str, bytes)) or not hasattr(self.warmup_horizons, "__iter__"):
+            raise ValueError(f"{c}.warmup_horizons must be a sequence of integers >= 1, got {self.warmup_horizons!r}")
+        object.__setattr__(self, "warmup_horizons", tuple(self.warmup_horizons))
+        for i, h in enumerate(self.warmup_horizons):
+            _check_int(c, f"warmup_horizons[{i}]", h, 1)
+        _check_int(c, "warmup_iterations", self.warmup_iterations, 1)
+        _check_pos(c, "warmup_upright", self.warmup_upright, allow_zero=True)
+        if self.warmup_upright > 1:
+            raise ValueError(f"{c}.warmup_upright must be a probability in [0, 1], got {self.warmup_upright!r}")
+        if self.warmup_horizons and self.apg_steps == 0:
+            raise ValueError(f"{c}.warmup_horizons needs apg_steps >= 1 (the curriculum shapes the APG gradient), "
+                             f"got apg_steps=0")
+        if self.warmup_stages * self.warmup_iterations > self.iterations:
+            raise ValueError(f"{c}.iterations ({self.iterations}) must cover the warm-up: len(warmup_horizons) * "
+                             f"warmup_iterations = {self.warmup_stages * self.warmup_iterations}")
 
     @classmethod
     def paper(cls, task: str = "acrobot", **overrides) -> "CEAPGConfig":
@@ -116,8 +142,22 @@ class CEAPGConfig(InnerAPGConfig):
                              f", got {task!r}")
         return cls(**{"task": task, **base, **overrides})
 
-    def env_steps_per_iteration(self) -> int:
-        return self.num_candidates * max(self.apg_steps, 1) * self.episodes * self.horizon
+    @property
+    def warmup_stages(self) -> int:
+        return len(self.warmup_horizons)
+
+    def training_horizon(self, iteration: int) -> int:
+        """Episode length candidates train on at ``iteration`` (0-based): a warm-up horizon, then ``horizon``."""
+        stage = iteration // self.warmup_iterations
+        return self.warmup_horizons[stage] if stage < self.warmup_stages else self.horizon
+
+    def env_steps_per_iteration(self, iteration: int | None = None) -> int:
+        """Simulated steps of one iteration (of iteration ``iteration`` when there is a warm-up)."""
+        horizon = self.horizon if iteration is None else self.training_horizon(iteration)
+        return self.num_candidates * max(self.apg_steps, 1) * self.episodes * horizon
+
+    def total_env_steps(self) -> int:
+        return sum(self.env_steps_per_iteration(i) for i in range(self.iterations))
 
 
 class CEState(NamedTuple):
@@ -136,8 +176,13 @@ class CEState(NamedTuple):
 def make_trainer(config: CEAPGConfig, task=None) -> Trainer:
     """Init/update pair for the host loop; ``update`` runs one jitted CE iteration."""
     task = build_task(config, task)
-    # episodes the candidates train and are scored on (the upright_starts curriculum); `task` is evaluated
+    # episodes the candidates train and are scored on, one task per curriculum stage (the warm-up horizons, then
+    # the full one with upright_starts); `task` is what the trainer evaluates
     train_task = dataclasses.replace(task, upright=config.upright_starts) if config.upright_starts else task
+    stage_tasks = [dataclasses.replace(task, horizon=h, upright=config.warmup_upright) for h in config.warmup_horizons]
+    stage_tasks.append(train_task)
+    stage_steps = jnp.asarray([config.env_steps_per_iteration(i * config.warmup_iterations)
+                               for i in range(len(stage_tasks))], jnp.float32)
     template = build_policy(config, task, jax.random.PRNGKey(0))
     flat0, unravel = flatten_policy(template)
     P = flat0.size
@@ -154,7 +199,7 @@ def make_trainer(config: CEAPGConfig, task=None) -> Trainer:
         norm = Normalizer.create(task.observation_size, dtype=flat0.dtype) if config.normalize else None
         return CEState(mean, std, norm, mean, norm, jnp.asarray(key), jnp.asarray(0, jnp.int32))
 
-    def candidate(theta, k, norm, lr):
+    def candidate(train_task, theta, k, norm, lr):
         if config.apg_steps == 0:
             policy = unravel(theta)
             eps = jax.vmap(lambda kk: episode(train_task, policy, norm, kk))(jax.random.split(k, config.episodes))
@@ -180,7 +225,15 @@ def make_trainer(config: CEAPGConfig, task=None) -> Trainer:
             keys = jnp.concatenate([keys, jnp.broadcast_to(keys[:1], (Kpad - K,) + keys.shape[1:])])
         thetas = jax.lax.with_sharding_constraint(thetas, shard)
         keys = jax.lax.with_sharding_constraint(keys, shard)
-        params, norms, fitness, bad, mean_ret = jax.vmap(candidate, in_axes=(0, 0, None, None))(
+        stage = jnp.minimum(state.iteration // config.warmup_iterations, len(stage_tasks) - 1)
+
+        def run_candidate(theta, k, norm, lr):
+            if len(stage_tasks) == 1:
+                return candidate(train_task, theta, k, norm, lr)
+            branches = [functools.partial(candidate, t) for t in stage_tasks]
+            return jax.lax.switch(stage, branches, theta, k, norm, lr)
+
+        params, norms, fitness, bad, mean_ret = jax.vmap(run_candidate, in_axes=(0, 0, None, None))(
             thetas, keys, state.normalizer, lr)
         params, fitness, bad, mean_ret = params[:K], fitness[:K], bad[:K], mean_ret[:K]
         params = jax.lax.with_sharding_constraint(params, replicated)
@@ -203,7 +256,8 @@ def make_trainer(config: CEAPGConfig, task=None) -> Trainer:
             "nonfinite": jnp.sum(bad),
             "learning_rate": lr,
             "std": jnp.mean(new_std),
-            "env_steps": jnp.asarray(config.env_steps_per_iteration(), jnp.float32),
+            "env_steps": stage_steps[stage],
+            "training_horizon": jnp.asarray([t.horizon for t in stage_tasks], jnp.float32)[stage],
         }
         new = CEState(new_mean, new_std, new_norm, params[order[0]], best_norm, state.key, state.iteration + 1)
         return new, metrics

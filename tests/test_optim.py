@@ -37,6 +37,12 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
         (lambda: ce_apg.CEAPGConfig(policy="transformer"), "policy"),
         (lambda: ce_apg.CEAPGConfig(upright_starts=1.5), "upright_starts"),
         (lambda: ce_apg.CEAPGConfig(upright_starts=-0.1), "upright_starts"),
+        (lambda: ce_apg.CEAPGConfig(warmup_horizons=(100, 0)), r"warmup_horizons\[1\]"),
+        (lambda: ce_apg.CEAPGConfig(warmup_horizons="100"), "warmup_horizons"),
+        (lambda: ce_apg.CEAPGConfig(warmup_horizons=(100,), warmup_iterations=0), "warmup_iterations"),
+        (lambda: ce_apg.CEAPGConfig(warmup_upright=1.5), "warmup_upright"),
+        (lambda: ce_apg.CEAPGConfig(iterations=20, warmup_horizons=(100, 200), warmup_iterations=15), "iterations"),
+        (lambda: ce_apg.CEAPGConfig(apg_steps=0, warmup_horizons=(100,)), "warmup_horizons"),
         (lambda: apg.APGConfig(learning_rate=-1.0), "learning_rate"),
         (lambda: apg.APGConfig(episodes=0), "episodes"),
         (lambda: papg.PAPGConfig(num_runs=0), "num_runs"),
@@ -153,6 +159,37 @@ def test_upright_starts_train_on_balanced_starts_and_evaluate_hanging():
     # hanging within ~0.011 rad of straight down (reset noise 0.01 on angle and speed): at most 20 (10 - (pi - 0.011)^2)
     assert fitness[0.0] <= 20 * (10 - (np.pi - 0.011) ** 2)
     assert fitness[1.0] > 190  # of 200 for a perfect hold; measured 199.9 (a 0.01 rad tilt grows e^3.8t, ~0.4 rad at 1 s)
+
+
+def test_warmup_horizons_schedule_the_training_episodes(tmp_path):
+    """The warm-up trains and scores candidates on ``warmup_horizons[i]``-step episodes from upright for
+    ``warmup_iterations`` iterations each, then on the full hanging task; env steps follow the stage; a run
+    resumed across a stage boundary (its config holds a tuple, stored as JSON) equals an uninterrupted one and
+    the one jittable ``make_train``. With a zero policy (std 0, a negligible learning rate) a 1 kg pendulum
+    started upright earns nearly 10 per step; left hanging about 10 - pi^2."""
+    task = chain_swingup(lg.systems.pendulum(gear=5.0), dt=0.05, horizon=20)
+    cfg = ce_apg.CEAPGConfig(task="custom", num_candidates=2, num_elites=1, iterations=5, apg_steps=1, episodes=2,
+                             horizon=20, width=4, fitness_window=1, init_std=0.0, lr_start=1e-12, lr_end=1e-12,
+                             warmup_horizons=[4, 8], warmup_iterations=2)
+    assert cfg.warmup_horizons == (4, 8) and [cfg.training_horizon(i) for i in range(5)] == [4, 4, 8, 8, 20]
+    assert cfg.total_env_steps() == 2 * 1 * 2 * (4 + 4 + 8 + 8 + 20)
+    trainer = ce_apg.make_trainer(cfg, task)
+    assert trainer.task.horizon == 20 and trainer.task.upright == 0  # evaluation: the full hanging task
+    key = jax.random.PRNGKey(2)
+    state, hist = run(trainer, key, iterations=5, ckpt_path=str(tmp_path / "a.eqx"), progress=False, seed=2)
+    assert [h["training_horizon"] for h in hist] == [4, 4, 8, 8, 20]
+    steps = [h["env_steps"] for h in hist]
+    assert np.diff([0.0] + steps).tolist() == [2 * 2 * h for h in (4, 4, 8, 8, 20)]
+    best = [h["best_return"] for h in hist]
+    assert 39 < best[0] <= 40 and 78 < best[2] <= 80  # upright, 4 and 8 steps (measured 39.99 and 79.9)
+    assert best[4] <= 20 * (10 - (np.pi - 0.011) ** 2)  # hanging (within 0.011 rad of straight down), 20 steps
+    run(trainer, key, iterations=3, ckpt_path=str(tmp_path / "b.eqx"), progress=False, seed=2)
+    resumed, hist_b = run(trainer, key, iterations=5, ckpt_path=str(tmp_path / "b.eqx"), resume=True,
+                          progress=False, seed=2)
+    assert params_equal(resumed, state) and [h["best_return"] for h in hist_b] == best
+    scanned, metrics = jax.jit(ce_apg.make_train(cfg, task))(key)
+    assert params_equal(scanned, state)
+    assert metrics["training_horizon"].tolist() == [4, 4, 8, 8, 20]
 
 
 # --------------------------------------------------------------------------- checkpoints and resume
