@@ -39,9 +39,8 @@ import jax.numpy as jnp
 
 from lagrange import systems
 from lagrange.chain import Chain
-from lagrange.integrate import step as _step
 from lagrange.solvers import RK4
-from lagrange.tasks import TaskState, wrap
+from lagrange.tasks import TaskState, control_step, wrap
 
 __all__ = ["SHACCartpole", "shac_cartpole", "POLE_INERTIA"]
 
@@ -82,9 +81,7 @@ class SHACCartpole(eqx.Module):
 
     def step(self, state: TaskState, action) -> TaskState:
         """One control interval ``dt`` under the cart force ``1000 clip(action, -1, 1)``."""
-        a = jnp.clip(action, -1.0, 1.0)
-        q, qd = _step(self.chain, state.q, state.qd, a, self.dt, self.solver, self.substeps)
-        return TaskState(q, qd)
+        return control_step(self, state, action)
 
     def angles(self, state: TaskState):
         """Pole angle (1,), wrapped to (-pi, pi], 0 = upright."""

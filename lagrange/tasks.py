@@ -69,7 +69,7 @@ from lagrange.chain import Chain
 from lagrange.integrate import step as _step
 from lagrange.solvers import RK4
 
-__all__ = ["TaskState", "Task", "acrobot", "cartpole", "double_cartpole", "make_task", "TASKS", "balanced", "wrap",
+__all__ = ["TaskState", "Task", "control_step", "acrobot", "cartpole", "double_cartpole", "make_task", "TASKS", "balanced", "wrap",
            "chain_swingup"]
 
 
@@ -83,6 +83,14 @@ class TaskState(NamedTuple):
 
     q: jax.Array
     qd: jax.Array
+
+
+def control_step(task, state: TaskState, action) -> TaskState:
+    """One control interval ``task.dt`` (``task.substeps`` solver steps of ``task.solver``) under
+    ``clip(action, -1, 1)`` times the chain's gear; the ``step`` of every task here."""
+    a = jnp.clip(action, -1.0, 1.0)
+    q, qd = _step(task.chain, state.q, state.qd, a, task.dt, task.solver, task.substeps)
+    return TaskState(q, qd)
 
 
 class Task(eqx.Module):
@@ -149,9 +157,7 @@ class Task(eqx.Module):
 
     def step(self, state: TaskState, action) -> TaskState:
         """One control interval ``dt`` under ``clip(action, -1, 1)`` times the chain's gear."""
-        a = jnp.clip(action, -1.0, 1.0)
-        q, qd = _step(self.chain, state.q, state.qd, a, self.dt, self.solver, self.substeps)
-        return TaskState(q, qd)
+        return control_step(self, state, action)
 
     # -- readings -----------------------------------------------------------------------------
     def angles(self, state: TaskState):
