@@ -64,7 +64,7 @@ class CEAPGConfig(InnerAPGConfig):
         counts those episodes too; ``Trainer.task`` (what the examples evaluate) keeps the paper's
         hanging start.
       warmup_horizons, warmup_iterations, warmup_upright: a curriculum of training-episode lengths
-        [(), none]. The first ``len(warmup_horizons) * warmup_iterations`` of the ``iterations`` train
+        [not in the paper; none]. The first ``len(warmup_horizons) * warmup_iterations`` of the ``iterations`` train
         and score candidates on episodes of ``warmup_horizons[0]``, then ``[1]``, ... control steps
         (``warmup_iterations`` each) that start upright with probability ``warmup_upright``; the
         rest use ``horizon`` and ``upright_starts``. The learning-rate schedule runs across all
@@ -199,15 +199,15 @@ def make_trainer(config: CEAPGConfig, task=None) -> Trainer:
         norm = Normalizer.create(task.observation_size, dtype=flat0.dtype) if config.normalize else None
         return CEState(mean, std, norm, mean, norm, jnp.asarray(key), jnp.asarray(0, jnp.int32))
 
-    def candidate(train_task, theta, k, norm, lr):
+    def candidate(stage_task, theta, k, norm, lr):
         if config.apg_steps == 0:
             policy = unravel(theta)
-            eps = jax.vmap(lambda kk: episode(train_task, policy, norm, kk))(jax.random.split(k, config.episodes))
+            eps = jax.vmap(lambda kk: episode(stage_task, policy, norm, kk))(jax.random.split(k, config.episodes))
             fit = jnp.mean(eps.ret)
             if norm is not None:
                 norm = norm.update(eps.obs)
             return theta, norm, jnp.where(jnp.isfinite(fit), fit, -jnp.inf), ~jnp.isfinite(fit), fit
-        res = apg_steps(train_task, unravel, theta, norm, k, steps=config.apg_steps, episodes=config.episodes,
+        res = apg_steps(stage_task, unravel, theta, norm, k, steps=config.apg_steps, episodes=config.episodes,
                         learning_rate=lr, truncation=config.truncation)
         fit = jnp.mean(res.returns[-config.fitness_window:])
         bad = ~res.finite | ~jnp.isfinite(fit)
