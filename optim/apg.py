@@ -41,6 +41,12 @@ def _check_pos(cls: str, name: str, value, *, allow_zero: bool = False):
         raise ValueError(f"{cls}.{name} must be a finite number {bound}, got {value!r}")
 
 
+def _check_probability(cls: str, name: str, value):
+    _check_pos(cls, name, value, allow_zero=True)
+    if float(value) > 1:
+        raise ValueError(f"{cls}.{name} must be a probability in [0, 1], got {value!r}")
+
+
 def check_common(cfg) -> None:
     """Validate the fields every optimiser config has (task, policy, episode shape)."""
     cls = type(cfg).__name__

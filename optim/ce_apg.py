@@ -26,6 +26,7 @@ from optim.apg import (
     Trainer,
     _check_int,
     _check_pos,
+    _check_probability,
     apg_steps,
     build_policy,
     build_task,
@@ -95,18 +96,14 @@ class CEAPGConfig(InnerAPGConfig):
             raise ValueError(
                 f"{c}.num_elites must be <= num_candidates ({self.num_candidates}), got {self.num_elites}")
         _check_pos(c, "init_std", self.init_std, allow_zero=True)
-        _check_pos(c, "upright_starts", self.upright_starts, allow_zero=True)
-        if self.upright_starts > 1:
-            raise ValueError(f"{c}.upright_starts must be a probability in [0, 1], got {self.upright_starts!r}")
+        _check_probability(c, "upright_starts", self.upright_starts)
         if isinstance(self.warmup_horizons, (str, bytes)) or not hasattr(self.warmup_horizons, "__iter__"):
             raise ValueError(f"{c}.warmup_horizons must be a sequence of integers >= 1, got {self.warmup_horizons!r}")
         object.__setattr__(self, "warmup_horizons", tuple(self.warmup_horizons))
         for i, h in enumerate(self.warmup_horizons):
             _check_int(c, f"warmup_horizons[{i}]", h, 1)
         _check_int(c, "warmup_iterations", self.warmup_iterations, 1)
-        _check_pos(c, "warmup_upright", self.warmup_upright, allow_zero=True)
-        if self.warmup_upright > 1:
-            raise ValueError(f"{c}.warmup_upright must be a probability in [0, 1], got {self.warmup_upright!r}")
+        _check_probability(c, "warmup_upright", self.warmup_upright)
         if self.warmup_horizons and self.apg_steps == 0:
             raise ValueError(f"{c}.warmup_horizons needs apg_steps >= 1 (the curriculum shapes the APG gradient), "
                              f"got apg_steps=0")
@@ -146,10 +143,14 @@ class CEAPGConfig(InnerAPGConfig):
     def warmup_stages(self) -> int:
         return len(self.warmup_horizons)
 
+    def stage(self, iteration):
+        """Curriculum stage of ``iteration`` (0-based; an int or a traced array): ``i < warmup_stages`` trains on
+        ``warmup_horizons[i]``, ``warmup_stages`` on the task itself."""
+        return jnp.minimum(iteration // self.warmup_iterations, self.warmup_stages)
+
     def training_horizon(self, iteration: int) -> int:
         """Episode length candidates train on at ``iteration`` (0-based): a warm-up horizon, then ``horizon``."""
-        stage = iteration // self.warmup_iterations
-        return self.warmup_horizons[stage] if stage < self.warmup_stages else self.horizon
+        return (*self.warmup_horizons, self.horizon)[int(self.stage(iteration))]
 
     def env_steps_per_iteration(self, iteration: int | None = None) -> int:
         """Simulated steps of one iteration (of iteration ``iteration`` when there is a warm-up)."""
@@ -181,6 +182,7 @@ def make_trainer(config: CEAPGConfig, task=None) -> Trainer:
     train_task = dataclasses.replace(task, upright=config.upright_starts) if config.upright_starts else task
     stage_tasks = [dataclasses.replace(task, horizon=h, upright=config.warmup_upright) for h in config.warmup_horizons]
     stage_tasks.append(train_task)
+    stage_horizons = jnp.asarray([t.horizon for t in stage_tasks], jnp.float32)
     stage_steps = jnp.asarray([config.env_steps_per_iteration(i * config.warmup_iterations)
                                for i in range(len(stage_tasks))], jnp.float32)
     template = build_policy(config, task, jax.random.PRNGKey(0))
@@ -213,6 +215,8 @@ def make_trainer(config: CEAPGConfig, task=None) -> Trainer:
         bad = ~res.finite | ~jnp.isfinite(fit)
         return res.params, res.normalizer, jnp.where(bad, -jnp.inf, fit), bad, jnp.mean(res.returns)
 
+    stage_candidates = [functools.partial(candidate, t) for t in stage_tasks]  # one lax.switch branch per stage
+
     def update(state: CEState):
         key = jax.random.fold_in(state.key, state.iteration)
         k_eps, k_run = jax.random.split(key)
@@ -225,13 +229,10 @@ def make_trainer(config: CEAPGConfig, task=None) -> Trainer:
             keys = jnp.concatenate([keys, jnp.broadcast_to(keys[:1], (Kpad - K,) + keys.shape[1:])])
         thetas = jax.lax.with_sharding_constraint(thetas, shard)
         keys = jax.lax.with_sharding_constraint(keys, shard)
-        stage = jnp.minimum(state.iteration // config.warmup_iterations, len(stage_tasks) - 1)
+        stage = config.stage(state.iteration)
 
         def run_candidate(theta, k, norm, lr):
-            if len(stage_tasks) == 1:
-                return candidate(train_task, theta, k, norm, lr)
-            branches = [functools.partial(candidate, t) for t in stage_tasks]
-            return jax.lax.switch(stage, branches, theta, k, norm, lr)
+            return jax.lax.switch(stage, stage_candidates, theta, k, norm, lr)
 
         params, norms, fitness, bad, mean_ret = jax.vmap(run_candidate, in_axes=(0, 0, None, None))(
             thetas, keys, state.normalizer, lr)
@@ -257,7 +258,7 @@ def make_trainer(config: CEAPGConfig, task=None) -> Trainer:
             "learning_rate": lr,
             "std": jnp.mean(new_std),
             "env_steps": stage_steps[stage],
-            "training_horizon": jnp.asarray([t.horizon for t in stage_tasks], jnp.float32)[stage],
+            "training_horizon": stage_horizons[stage],
         }
         new = CEState(new_mean, new_std, new_norm, params[order[0]], best_norm, state.key, state.iteration + 1)
         return new, metrics
