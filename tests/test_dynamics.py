@@ -125,13 +125,16 @@ def test_closed_forms_are_not_trivially_equal():
 # ------------------------------------------------------------------ random chains vs Euler-Lagrange
 
 
-def random_chain(rng, n, damped=0.5):
+def random_chain(rng, n, damped=0.5, *, cart=False, gravity=None):
     """A random chain of n links: mixed joints, random prismatic axes, com, inertia, and
-    damping/armature/gear present on random subsets of the joints."""
+    damping/armature/gear present on random subsets of the joints. ``cart``: link 0 is a prismatic
+    cart on the x axis. ``gravity``: fixed, or None for one drawn by ``n`` (also used by
+    ``tests/test_recursive.py``)."""
     links = []
     for i in range(n):
-        prismatic = rng.random() < 0.35
-        axis = float(rng.uniform(-np.pi, np.pi)) if prismatic and rng.random() < 0.7 else 0.0
+        base_cart = cart and i == 0
+        prismatic = base_cart or rng.random() < 0.35
+        axis = float(rng.uniform(-np.pi, np.pi)) if prismatic and not base_cart and rng.random() < 0.7 else 0.0
         length = float(rng.uniform(0.2, 1.5))
         links.append(
             Link(
@@ -146,7 +149,8 @@ def random_chain(rng, n, damped=0.5):
                 gear=float(rng.uniform(0.5, 5.0)) if rng.random() < 0.5 else None,
             )
         )
-    gravity = (0.0, float(rng.uniform(1.0, 20.0)), 9.81)[n % 3] if damped < 1 else 9.81
+    if gravity is None:
+        gravity = (0.0, float(rng.uniform(1.0, 20.0)), 9.81)[n % 3] if damped < 1 else 9.81
     return Chain(links, gravity=gravity)
 
 

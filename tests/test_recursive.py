@@ -20,41 +20,13 @@ import pytest
 import lagrange as lg
 import lagrange.euler_lagrange as el
 from lagrange import dynamics, recursive
-from lagrange.chain import Chain, Link
-
-REL = 1e-12
-
-
-def assert_close(actual, expected, rel=REL, what=""):
-    actual, expected = np.asarray(actual), np.asarray(expected)
-    assert actual.shape == expected.shape, (what, actual.shape, expected.shape)
-    scale = max(1.0, float(np.max(np.abs(expected))))
-    err = float(np.max(np.abs(actual - expected)))
-    assert err <= rel * scale, f"{what}: max error {err:.3g} > {rel:.1e} x scale {scale:.3g}"
+from test_dynamics import assert_close  # REL = 1e-12, as the docstring says
+from test_dynamics import random_chain as _random_chain
 
 
 def random_chain(rng, n, cart=False):
-    """Random masses/lengths/com/inertia, ~1/3 prismatic joints (random axes), damping,
-    armature and gear on random subsets; ``cart``: link 0 is a prismatic cart on the x axis."""
-    links = []
-    for i in range(n):
-        prismatic = (cart and i == 0) or (i > 0 and rng.random() < 0.35)
-        axis = float(rng.uniform(-np.pi, np.pi)) if prismatic and not (cart and i == 0) and rng.random() < 0.7 else 0.0
-        length = float(rng.uniform(0.2, 1.5))
-        links.append(
-            Link(
-                "prismatic" if prismatic else "revolute",
-                float(rng.uniform(0.3, 3.0)),
-                length,
-                com=float(rng.uniform(0.0, length)) if rng.random() < 0.5 else None,
-                inertia=float(rng.uniform(0.01, 0.5)) if rng.random() < 0.5 else None,
-                axis=axis,
-                damping=float(rng.uniform(0.05, 1.0)) if rng.random() < 0.5 else 0.0,
-                armature=float(rng.uniform(0.01, 0.2)) if rng.random() < 0.5 else 0.0,
-                gear=float(rng.uniform(0.5, 5.0)) if rng.random() < 0.5 else None,
-            )
-        )
-    return Chain(links, gravity=(9.81, 0.0, 3.7)[n % 3])
+    """``test_dynamics.random_chain`` (damping on about half the joints) under a gravity fixed by ``n``."""
+    return _random_chain(rng, n, cart=cart, gravity=(9.81, 0.0, 3.7)[n % 3])
 
 
 def states(rng, chain, k=8):
