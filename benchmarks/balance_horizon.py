@@ -45,9 +45,15 @@ def evaluate(task, policy, norm, key):
     return out
 
 
+def config(task_name: str, horizon: int, iterations: int, warmup: tuple[int, ...] = ()) -> ce_apg.CEAPGConfig:
+    """The task's laptop protocol on upright starts only, ``horizon``-step episodes, the warm-up ``warmup`` (from
+    upright, equal shares of the iterations) or none (replacing any warm-up a preset has)."""
+    warm = dict(warmup_horizons=warmup, warmup_iterations=iterations // (len(warmup) + 1), warmup_upright=1.0)
+    return ce_apg.CEAPGConfig.laptop(task_name, upright_starts=1.0, horizon=horizon, iterations=iterations, **warm)
+
+
 def one(task_name: str, horizon: int, iterations: int, seed: int, warmup: tuple[int, ...] = ()) -> dict:
-    warm = dict(warmup_horizons=warmup, warmup_iterations=iterations // (len(warmup) + 1)) if warmup else {}
-    cfg = ce_apg.CEAPGConfig.laptop(task_name, upright_starts=1.0, horizon=horizon, iterations=iterations, **warm)
+    cfg = config(task_name, horizon, iterations, warmup)
     trainer = ce_apg.make_trainer(cfg)
     t0 = time.perf_counter()
     state, history = run(trainer, jax.random.PRNGKey(seed), iterations=iterations, progress=False, seed=seed)

@@ -7,7 +7,6 @@ iteration), ``results.json``, ``learning_curve.png``, ``swingup.png`` and ``swin
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
 from typing import Callable
@@ -35,7 +34,8 @@ EVAL_EPISODES = 16
 def parse(description: str, default_out: str, argv=None):
     p = argparse.ArgumentParser(description=description, formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("--seed", type=int, default=0, help="PRNG seed (training and evaluation starts)")
-    p.add_argument("--iterations", type=int, default=None, help="CE iterations (default: the config's)")
+    p.add_argument("--iterations", type=int, default=None,
+                   help="CE iterations (default: the config's; its learning-rate schedule and warm-up compress to fit)")
     p.add_argument("--out", default=default_out, help="output folder")
     p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.eqx if it exists")
     p.add_argument("--quick", action="store_true", help="a short demo run (about two minutes on two cores)")
@@ -56,7 +56,7 @@ def main(description: str, default_out: str, config: ce_apg.CEAPGConfig, quick: 
     if args.iterations is not None:
         if args.iterations < 1:
             raise SystemExit(f"--iterations must be >= 1, got {args.iterations}")
-        cfg = dataclasses.replace(cfg, iterations=args.iterations)
+        cfg = cfg.with_iterations(args.iterations)  # the learning-rate schedule and any warm-up compress to fit
     use_cpu_cores(args.cpu_devices)  # before the first JAX computation
     os.makedirs(args.out, exist_ok=True)
     if callable(task) and not isinstance(task, Task):
@@ -66,7 +66,7 @@ def main(description: str, default_out: str, config: ce_apg.CEAPGConfig, quick: 
     ckpt = os.path.join(args.out, "checkpoint.eqx")
     if not args.resume and os.path.exists(ckpt):
         os.remove(ckpt)
-    print(f"CE-APG on {cfg.task}: {cfg.iterations} iterations x {cfg.env_steps_per_iteration():.2e} env steps; "
+    print(f"CE-APG on {cfg.task}: {cfg.iterations} iterations, {cfg.total_env_steps():.2e} env steps; "
           f"{len(jax.devices())} device(s); writing to {args.out}")
     try:
         state, history = run(trainer, jax.random.PRNGKey(args.seed), iterations=cfg.iterations, ckpt_path=ckpt,

@@ -25,7 +25,7 @@ from optim.ce_apg import CEAPGConfig  # noqa: E402
 CONFIG = CEAPGConfig.laptop("acrobot")
 # --quick: the default protocol cut to 45 iterations (5.4e7 env steps, the learning-rate schedule compressed to
 # match): about two minutes on two CPU cores; seed 0 reaches 1838 (a swing-up under way, not yet balanced).
-QUICK = CEAPGConfig.laptop("acrobot", iterations=45)
+QUICK = CONFIG.with_iterations(45)
 
 if __name__ == "__main__":
     main(__doc__.splitlines()[0], "runs/acrobot_swingup", CONFIG, QUICK, paper_return=3053.0)

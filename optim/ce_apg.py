@@ -139,6 +139,17 @@ class CEAPGConfig(InnerAPGConfig):
                              f", got {task!r}")
         return cls(**{"task": task, **base, **overrides})
 
+    def with_iterations(self, iterations: int) -> "CEAPGConfig":
+        """The same protocol over ``iterations`` CE iterations. The learning-rate schedule spans ``iterations``
+        and so compresses by itself; the warm-up compresses in proportion (``warmup_iterations * iterations //
+        self.iterations`` per stage), and is dropped when that is less than one iteration."""
+        if not self.warmup_horizons:
+            return dataclasses.replace(self, iterations=iterations)
+        per_stage = self.warmup_iterations * iterations // self.iterations
+        if per_stage >= 1:
+            return dataclasses.replace(self, iterations=iterations, warmup_iterations=per_stage)
+        return dataclasses.replace(self, iterations=iterations, warmup_horizons=())
+
     @property
     def warmup_stages(self) -> int:
         return len(self.warmup_horizons)

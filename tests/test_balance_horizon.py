@@ -18,3 +18,13 @@ def test_one_run_trains_on_upright_starts_and_evaluates_both_lengths():
     for at in ("at_training_horizon", "at_500"):
         assert 0.0 <= r[at]["balanced_fraction"] <= 1.0 and "mean_abs_final_x" in r[at]
     assert r["at_training_horizon"]["return"] <= 0 and r["at_500"]["return"] <= 0
+
+
+def test_config_trains_upright_only():
+    """Every training episode starts upright, over the given warm-up or none (whatever the preset has)."""
+    flat = bh.config("acrobot", 100, 60)
+    assert flat.warmup_horizons == () and flat.upright_starts == 1.0
+    assert [flat.training_horizon(i) for i in (0, 59)] == [100, 100]
+    cur = bh.config("acrobot", 500, 60, warmup=(100, 200))
+    assert (cur.warmup_horizons, cur.warmup_iterations, cur.warmup_upright) == ((100, 200), 20, 1.0)
+    assert [cur.training_horizon(i) for i in (0, 20, 40)] == [100, 200, 500]

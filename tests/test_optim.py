@@ -72,10 +72,28 @@ def test_laptop_presets():
     a = ce_apg.CEAPGConfig.laptop("acrobot")
     assert (a.num_candidates, a.num_elites, a.iterations, a.apg_steps, a.episodes) == (24, 6, 150, 50, 2)
     assert a.trig_observation and a.env_steps_per_iteration() == 1_200_000
+    assert a.warmup_horizons == () and a.total_env_steps() == 150 * 1_200_000
     assert ce_apg.CEAPGConfig.laptop("double_cartpole").width == 32
     assert ce_apg.CEAPGConfig.laptop("cartpole", iterations=3).iterations == 3
     with pytest.raises(ValueError, match="task"):
         ce_apg.CEAPGConfig.laptop("hopper")
+
+
+def test_with_iterations_compresses_the_warmup():
+    """A shorter run of the same protocol (``--iterations``, ``--quick``): the warm-up keeps its share of the
+    iterations, and is dropped once a stage would get less than one."""
+    # 20 iterations of 300-step and 20 of 400-step hanging episodes, then 110 of the task's 500 (README)
+    a = ce_apg.CEAPGConfig.laptop("acrobot", warmup_horizons=(300, 400), warmup_iterations=20, warmup_upright=0.0)
+    assert a.total_env_steps() == 24 * 50 * 2 * (20 * 300 + 20 * 400 + 110 * 500)
+    assert a.with_iterations(150) == a
+    q = a.with_iterations(45)
+    assert (q.iterations, q.warmup_horizons, q.warmup_iterations) == (45, (300, 400), 6)
+    assert [q.training_horizon(i) for i in (0, 5, 6, 11, 12, 44)] == [300, 300, 400, 400, 500, 500]
+    assert a.with_iterations(10).warmup_iterations == 1
+    one = a.with_iterations(1)
+    assert (one.iterations, one.warmup_horizons, one.training_horizon(0)) == (1, (), 500)
+    c = ce_apg.CEAPGConfig.laptop("cartpole")  # no warm-up: only the iteration count changes
+    assert c.with_iterations(3) == dataclasses.replace(c, iterations=3)
 
 
 def test_custom_task_must_be_passed():
