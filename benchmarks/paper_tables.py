@@ -4,6 +4,8 @@
     python benchmarks/paper_tables.py --budget laptop  # this project's cut protocol (the examples' defaults)
     python benchmarks/paper_tables.py --budget laptop --tasks acrobot --algos ce_apg --seeds 0 1   # a subset
     python benchmarks/paper_tables.py --budget smoke --seeds 0      # a pipeline check (numbers meaningless)
+    python benchmarks/paper_tables.py --tasks acrobot --algos ce_apg --variant warmup \
+        --set warmup_horizons=300,400 --set warmup_iterations=20 --set warmup_upright=0   # a changed protocol
 
 For every (algorithm, task, seed) it trains, evaluates the final deterministic policy on 16 fixed random
 starts, and records the mean return, whether every evaluation episode balanced, env steps and wall-clock
@@ -11,11 +13,15 @@ seconds. Runs are checkpointed under ``--out`` and skipped when their result exi
 be resumed. Writes ``--out/<budget>/results.json`` and ``tables.md`` (mean +- std over seeds, fraction of
 seeds that balance, the paper's numbers beside ours), and the same as
 ``benchmarks/results/paper_tables_<budget>_{results.json,tables.md}``, from every finished run of the budget.
+``--set FIELD=VALUE`` (repeatable) changes a field of every selected algorithm's config; such runs need a
+``--variant NAME`` and go to ``--out/<budget>_<NAME>/`` and ``paper_tables_<budget>_<NAME>_*``, apart from the
+budget's own tables.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import sys
@@ -81,12 +87,48 @@ def make_trainer(algo, cfg):
             "apg": apg.make_trainer}[algo](cfg)
 
 
-def one_run(algo, task, seed, budget, out, progress):
+def parse_value(text: str):
+    """A ``--set`` value: ``300,400`` -> (300, 400); ints, floats, true/false/none; anything else a string."""
+    if "," in text:
+        return tuple(parse_value(t) for t in text.split(",") if t.strip())
+    low = text.strip().lower()
+    if low in ("true", "false"):
+        return low == "true"
+    if low == "none":
+        return None
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
+def parse_overrides(items) -> dict:
+    out = {}
+    for item in items or ():
+        field, sep, value = item.partition("=")
+        if not sep or not field.strip():
+            raise SystemExit(f"--set must be FIELD=VALUE, got {item!r}")
+        out[field.strip()] = parse_value(value)
+    return out
+
+
+def with_overrides(cfg, overrides: dict):
+    """``cfg`` with ``overrides`` replaced (and validated by the config); unknown fields name the allowed ones."""
+    names = [f.name for f in dataclasses.fields(cfg)]
+    unknown = sorted(set(overrides) - set(names))
+    if unknown:
+        raise ValueError(f"--set: {type(cfg).__name__} has no field {', '.join(unknown)}; fields: {', '.join(names)}")
+    return dataclasses.replace(cfg, **overrides)
+
+
+def one_run(algo, task, seed, budget, out, progress, overrides=None):
     path = os.path.join(out, f"{algo}_{task}_{seed}.json")
     if os.path.exists(path):
         with open(path) as f:
             return json.load(f)
-    cfg = config(algo, task, budget)
+    cfg = with_overrides(config(algo, task, budget), overrides or {})
     trainer = make_trainer(algo, cfg)
     t0 = time.perf_counter()
     state, history = run(trainer, jax.random.PRNGKey(seed), iterations=cfg.iterations,
@@ -104,7 +146,7 @@ def one_run(algo, task, seed, budget, out, progress):
     return res
 
 
-def table(results, budget):
+def table(results, budget, variant=""):
     lines = ["| algorithm | task | paper (mean +- std, 8 seeds) | ours (mean +- std) | seeds | seeds balanced | "
              "episodes balanced | env steps / run | wall-clock / run [s] |", "|---|---|---|---|---|---|---|---|---|"]
     for algo in ALGOS:
@@ -119,7 +161,7 @@ def table(results, budget):
                 f"{np.mean([r['balanced'] for r in rs]):.0%} | "
                 f"{np.mean([r.get('balanced_fraction', np.nan) for r in rs]):.0%} | {np.mean([r['env_steps'] for r in rs]):.2e} | "
                 f"{np.mean([r['wall_clock_seconds'] for r in rs]):.0f} |")
-    notes = [f"\nBudget: `{budget}`. {PAPER_NOTE['apg']}. Return of the final deterministic policy, mean over "
+    notes = [f"\nBudget: `{budget}`{variant}. {PAPER_NOTE['apg']}. Return of the final deterministic policy, mean over "
              f"{EVAL_EPISODES} evaluation episodes per seed; 'seeds balanced' = fraction of seeds whose every evaluation "
              f"episode keeps all links within 0.2 rad of upright over the final 20 %; 'episodes balanced' = the "
              f"fraction of all evaluation episodes that do. Wall-clock on {os.cpu_count()} "
@@ -136,25 +178,39 @@ def main(argv=None):
     p.add_argument("--out", default="runs/paper_tables")
     p.add_argument("--results", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "results"),
                    help="where paper_tables_<budget>_{results.json,tables.md} are written (besides OUT/<budget>/)")
+    p.add_argument("--set", action="append", metavar="FIELD=VALUE", dest="overrides",
+                   help="change a config field of the selected runs (repeatable; 300,400 is a tuple); needs --variant")
+    p.add_argument("--variant", default=None, help="name of a --set protocol: its runs and tables are kept apart")
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--cpu-devices", type=int, default=cpu_core_count(),
                    help="JAX CPU devices to shard CE-APG/PAPG candidates over (default: one per core)")
     args = p.parse_args(argv)
+    overrides = parse_overrides(args.overrides)
+    if bool(overrides) != bool(args.variant):
+        raise SystemExit("--set and --variant go together: a changed protocol is kept apart under its name")
+    if args.variant and not args.variant.replace("_", "").replace("-", "").isalnum():
+        raise SystemExit(f"--variant must be letters, digits, '_' or '-', got {args.variant!r}")
     use_cpu_cores(args.cpu_devices)
-    out = os.path.join(args.out, args.budget)
+    for algo in args.algos:  # fail before training on a field some selected config does not have
+        for task in args.tasks:
+            with_overrides(config(algo, task, args.budget), overrides)
+    name = args.budget + (f"_{args.variant}" if args.variant else "")
+    out = os.path.join(args.out, name)
     os.makedirs(out, exist_ok=True)
     for algo in args.algos:
         for task in args.tasks:
             for seed in args.seeds:
-                r = one_run(algo, task, seed, args.budget, out, not args.no_progress)
+                r = one_run(algo, task, seed, args.budget, out, not args.no_progress, overrides)
                 print(f"{algo:7s} {task:16s} seed {seed}: return {r['return']:8.0f} balanced {r['balanced']} "
                       f"{r['env_steps']:.2e} steps {r['wall_clock_seconds']:.0f} s", flush=True)
     # The tables cover every finished run of this budget, selected now or in an earlier invocation.
     results = saved_runs(out)
-    md = table(results, args.budget)
+    variant = (f", variant `{args.variant}`: " + ", ".join(f"`{k}={v!r}`" for k, v in overrides.items())
+               if args.variant else "")
+    md = table(results, args.budget, variant)
     for folder in (out, args.results):
         os.makedirs(folder, exist_ok=True)
-        stem = "" if folder == out else f"paper_tables_{args.budget}_"
+        stem = "" if folder == out else f"paper_tables_{name}_"
         with open(os.path.join(folder, f"{stem}results.json"), "w") as f:
             json.dump(results, f, indent=2)
         with open(os.path.join(folder, f"{stem}tables.md"), "w") as f:

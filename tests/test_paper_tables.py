@@ -1,0 +1,48 @@
+"""``benchmarks/paper_tables.py``: ``--set``/``--variant`` run a changed protocol, kept apart from the budget's
+tables."""
+
+from __future__ import annotations
+
+import json
+
+import jax
+import pytest
+
+from benchmarks import paper_tables as pt
+from optim import ce_apg
+
+
+def test_set_values_parse():
+    assert pt.parse_overrides(["warmup_horizons=300,400", "warmup_upright=0", "init_std=0.1", "truncation=none",
+                               "normalize=false", "task=cartpole"]) == {
+        "warmup_horizons": (300, 400), "warmup_upright": 0, "init_std": 0.1, "truncation": None,
+        "normalize": False, "task": "cartpole"}
+    with pytest.raises(SystemExit, match="FIELD=VALUE"):
+        pt.parse_overrides(["warmup_horizons"])
+
+
+def test_overrides_are_validated_and_name_the_field():
+    cfg = pt.config("ce_apg", "acrobot", "laptop")
+    new = pt.with_overrides(cfg, {"warmup_horizons": (300, 400), "warmup_iterations": 20, "warmup_upright": 0})
+    assert new == ce_apg.CEAPGConfig.laptop("acrobot", warmup_horizons=(300, 400), warmup_iterations=20,
+                                            warmup_upright=0.0)
+    with pytest.raises(ValueError, match="no field warmup_horizon;.*warmup_horizons"):
+        pt.with_overrides(cfg, {"warmup_horizon": (300,)})
+    with pytest.raises(ValueError, match="num_elites"):
+        pt.with_overrides(cfg, {"num_elites": 30})
+
+
+def test_variant_runs_and_tables_are_kept_apart(tmp_path):
+    with pytest.raises(SystemExit, match="--variant"):
+        pt.main(["--budget", "smoke", "--set", "episodes=2"])
+    out, results = tmp_path / "runs", tmp_path / "results"
+    devices = str(len(jax.devices("cpu")))  # JAX has started in this process: keep its device count
+    pt.main(["--budget", "smoke", "--tasks", "cartpole", "--algos", "ce_apg", "--seeds", "0", "--variant", "two",
+             "--set", "episodes=2", "--out", str(out), "--results", str(results), "--no-progress",
+             "--cpu-devices", devices])
+    run = json.loads((out / "smoke_two" / "ce_apg_cartpole_0.json").read_text())
+    assert run["config"]["episodes"] == 2 and run["env_steps"] == 4 * 2 * 2 * 500 * 2  # K x steps x eps x H x its
+    assert not (out / "smoke").exists()
+    assert sorted(p.name for p in results.iterdir()) == ["paper_tables_smoke_two_results.json",
+                                                         "paper_tables_smoke_two_tables.md"]
+    assert "variant `two`: `episodes=2`" in (results / "paper_tables_smoke_two_tables.md").read_text()
