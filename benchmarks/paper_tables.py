@@ -15,7 +15,8 @@ seeds that balance, the paper's numbers beside ours), and the same as
 ``benchmarks/results/paper_tables_<budget>_{results.json,tables.md}``, from every finished run of the budget.
 ``--set FIELD=VALUE`` (repeatable) changes a field of every selected algorithm's config; such runs need a
 ``--variant NAME`` and go to ``--out/<budget>_<NAME>/`` and ``paper_tables_<budget>_<NAME>_*``, apart from the
-budget's own tables.
+budget's own tables. On a fresh clone (no ``--out`` runs yet) the published runs are restored first, so the
+tables keep them and only missing runs are trained.
 """
 
 from __future__ import annotations
@@ -197,6 +198,9 @@ def main(argv=None):
     name = args.budget + (f"_{args.variant}" if args.variant else "")
     out = os.path.join(args.out, name)
     os.makedirs(out, exist_ok=True)
+    published = os.path.join(args.results, f"paper_tables_{name}_results.json")
+    if not saved_runs(out) and os.path.exists(published):  # runs/ is not in git: a fresh clone starts from the table
+        print(f"restored {restore_runs(published, out)} run results into {out} from {published}")
     for algo in args.algos:
         for task in args.tasks:
             for seed in args.seeds:
@@ -216,6 +220,17 @@ def main(argv=None):
         with open(os.path.join(folder, f"{stem}tables.md"), "w") as f:
             f.write(md)
     print(md)
+
+
+def restore_runs(results_json, out) -> int:
+    """Write each run of a published ``results.json`` back as ``out/<algo>_<task>_<seed>.json``, so that the
+    tables keep them and those runs are not redone."""
+    with open(results_json) as f:
+        runs = json.load(f)
+    for r in runs:
+        with open(os.path.join(out, f"{r['algo']}_{r['task']}_{r['seed']}.json"), "w") as f:
+            json.dump(r, f, indent=2)
+    return len(runs)
 
 
 def saved_runs(out):
