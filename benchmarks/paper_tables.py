@@ -124,12 +124,11 @@ def with_overrides(cfg, overrides: dict):
     return dataclasses.replace(cfg, **overrides)
 
 
-def one_run(algo, task, seed, budget, out, progress, overrides=None):
+def one_run(algo, task, seed, budget, cfg, out, progress):
     path = os.path.join(out, f"{algo}_{task}_{seed}.json")
     if os.path.exists(path):
         with open(path) as f:
             return json.load(f)
-    cfg = with_overrides(config(algo, task, budget), overrides or {})
     trainer = make_trainer(algo, cfg)
     t0 = time.perf_counter()
     state, history = run(trainer, jax.random.PRNGKey(seed), iterations=cfg.iterations,
@@ -192,9 +191,9 @@ def main(argv=None):
     if args.variant and not args.variant.replace("_", "").replace("-", "").isalnum():
         raise SystemExit(f"--variant must be letters, digits, '_' or '-', got {args.variant!r}")
     use_cpu_cores(args.cpu_devices)
-    for algo in args.algos:  # fail before training on a field some selected config does not have
-        for task in args.tasks:
-            with_overrides(config(algo, task, args.budget), overrides)
+    # every selected config, built (and --set validated) before any training
+    configs = {(algo, task): with_overrides(config(algo, task, args.budget), overrides)
+               for algo in args.algos for task in args.tasks}
     name = args.budget + (f"_{args.variant}" if args.variant else "")
     out = os.path.join(args.out, name)
     os.makedirs(out, exist_ok=True)
@@ -204,7 +203,7 @@ def main(argv=None):
     for algo in args.algos:
         for task in args.tasks:
             for seed in args.seeds:
-                r = one_run(algo, task, seed, args.budget, out, not args.no_progress, overrides)
+                r = one_run(algo, task, seed, args.budget, configs[algo, task], out, not args.no_progress)
                 print(f"{algo:7s} {task:16s} seed {seed}: return {r['return']:8.0f} balanced {r['balanced']} "
                       f"{r['env_steps']:.2e} steps {r['wall_clock_seconds']:.0f} s", flush=True)
     # The tables cover every finished run of this budget, selected now or in an earlier invocation.
