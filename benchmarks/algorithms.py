@@ -59,6 +59,7 @@ import jax.numpy as jnp  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from benchmarks._files import write_json  # noqa: E402
 from lagrange.tasks import balanced, make_task  # noqa: E402
 from optim import ce_apg, shac  # noqa: E402
 from optim.apg import episode  # noqa: E402
@@ -326,10 +327,7 @@ def restore_runs(json_path, runs_dir):
     for algos in saved.get("runs", {}).values():
         for rs in algos.values():
             for r in rs:
-                path = _run_path(runs_dir, r["algo"], r["task"], r["seed"])
-                with open(path + ".tmp", "w") as f:
-                    json.dump(r, f, indent=1)
-                os.replace(path + ".tmp", path)
+                write_json(_run_path(runs_dir, r["algo"], r["task"], r["seed"]), r)
                 count += 1
     return count
 
@@ -396,9 +394,7 @@ def main(argv=None):
                 else:
                     print(f"{task:16s} {LABELS[algo]:9s} seed {seed} ...", flush=True)
                     run = train_one(algo, task, seed, budget_for(budgets, algo, task), budget_name)
-                with open(path + ".tmp", "w") as f:
-                    json.dump(run, f, indent=1)
-                os.replace(path + ".tmp", path)
+                write_json(path, run)
                 if run.get("failed"):
                     print(f"{task:16s} {LABELS[algo]:9s} seed {seed}: FAILED {run['failed']}", flush=True)
                 else:

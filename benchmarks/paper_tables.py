@@ -33,8 +33,9 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
 
+from benchmarks._files import write_json  # noqa: E402
 from optim import apg, ce_apg, cem, papg  # noqa: E402
-from optim._loop import run  # noqa: E402
+from optim._loop import comparable_config, run  # noqa: E402
 from optim.apg import evaluate  # noqa: E402
 from optim.devices import cpu_core_count, use_cpu_cores  # noqa: E402
 
@@ -128,7 +129,9 @@ def one_run(algo, task, seed, budget, cfg, out, progress):
     path = os.path.join(out, f"{algo}_{task}_{seed}.json")
     if os.path.exists(path):
         with open(path) as f:
-            return json.load(f)
+            res = json.load(f)
+        check_same_config(path, res.get("config") or {}, cfg)
+        return res
     trainer = make_trainer(algo, cfg)
     t0 = time.perf_counter()
     state, history = run(trainer, jax.random.PRNGKey(seed), iterations=cfg.iterations,
@@ -141,9 +144,21 @@ def one_run(algo, task, seed, budget, cfg, out, progress):
            "balanced": bool(np.all(bal)), "balanced_fraction": float(np.mean(bal)), "env_steps": history[-1]["env_steps"],
            "wall_clock_seconds": history[-1]["elapsed"], "this_process_seconds": time.perf_counter() - t0,
            "config": apg.config_to_dict(cfg)}
-    with open(path, "w") as f:
-        json.dump(res, f, indent=2)
+    write_json(path, res, indent=2)
     return res
+
+
+def check_same_config(path, saved: dict, cfg) -> None:
+    """A finished run is reused only if it was trained with ``cfg``: after a preset changes, its old runs would
+    otherwise be tabled as the new protocol. Fields added to the config since are compared only when changed."""
+    if not saved:  # a result without its config (none of ours): nothing to compare
+        return
+    now = comparable_config(cfg, saved)
+    diff = sorted(k for k in set(saved) | set(now) if saved.get(k) != now.get(k))
+    if diff:
+        detail = "; ".join(f"{k}: run {saved.get(k)!r}, now {now.get(k)!r}" for k in diff)
+        raise SystemExit(f"{path} was trained with another config ({detail}). Move it away to retrain it, or give "
+                         f"the changed protocol a --variant NAME")
 
 
 def table(results, budget, variant=""):
@@ -192,8 +207,11 @@ def main(argv=None):
         raise SystemExit(f"--variant must be letters, digits, '_' or '-', got {args.variant!r}")
     use_cpu_cores(args.cpu_devices)
     # every selected config, built (and --set validated) before any training
-    configs = {(algo, task): with_overrides(config(algo, task, args.budget), overrides)
-               for algo in args.algos for task in args.tasks}
+    try:
+        configs = {(algo, task): with_overrides(config(algo, task, args.budget), overrides)
+                   for algo in args.algos for task in args.tasks}
+    except ValueError as err:  # an unknown field or a value the config rejects: a usage error, not a traceback
+        p.error(str(err))
     name = args.budget + (f"_{args.variant}" if args.variant else "")
     out = os.path.join(args.out, name)
     os.makedirs(out, exist_ok=True)
@@ -214,8 +232,7 @@ def main(argv=None):
     for folder in (out, args.results):
         os.makedirs(folder, exist_ok=True)
         stem = "" if folder == out else f"paper_tables_{name}_"
-        with open(os.path.join(folder, f"{stem}results.json"), "w") as f:
-            json.dump(results, f, indent=2)
+        write_json(os.path.join(folder, f"{stem}results.json"), results, indent=2)
         with open(os.path.join(folder, f"{stem}tables.md"), "w") as f:
             f.write(md)
     print(md)
@@ -227,8 +244,7 @@ def restore_runs(results_json, out) -> int:
     with open(results_json) as f:
         runs = json.load(f)
     for r in runs:
-        with open(os.path.join(out, f"{r['algo']}_{r['task']}_{r['seed']}.json"), "w") as f:
-            json.dump(r, f, indent=2)
+        write_json(os.path.join(out, f"{r['algo']}_{r['task']}_{r['seed']}.json"), r, indent=2)
     return len(runs)
 
 

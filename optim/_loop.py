@@ -36,12 +36,8 @@ def run(trainer, key, *, iterations: int, ckpt_path: str | None = None, resume: 
         # A field added to the config since the checkpoint was written matches when it has its default.
         head = checkpoint.read_header(ckpt_path)
         if isinstance(head.get("config"), dict):
-            saved = head["config"]
-            defaults = json.loads(json.dumps({f.name: f.default for f in dataclasses.fields(trainer.config)
-                                             if f.default is not dataclasses.MISSING}))
-            config_check = {k: v for k, v in config.items()
-                            if k in saved or k not in defaults or v != defaults[k]}
-            config_check["iterations"] = saved.get("iterations")
+            config_check = comparable_config(trainer.config, head["config"])
+            config_check["iterations"] = head["config"].get("iterations")
         else:
             config_check = config
         state, head = checkpoint.load(ckpt_path, state, config=config_check)
@@ -74,6 +70,15 @@ def run(trainer, key, *, iterations: int, ckpt_path: str | None = None, resume: 
         bar.update(1)
     bar.close()
     return state, history
+
+
+def comparable_config(cfg, saved: dict) -> dict:
+    """``cfg`` as a JSON dict to compare with a ``saved`` one: a field added to the config class since ``saved``
+    was written is left out while it has its default (so old runs and checkpoints stay valid)."""
+    config = config_to_dict(cfg)
+    defaults = json.loads(json.dumps({f.name: f.default for f in dataclasses.fields(cfg)
+                                     if f.default is not dataclasses.MISSING}))
+    return {k: v for k, v in config.items() if k in saved or k not in defaults or v != defaults[k]}
 
 
 def params_equal(a, b) -> bool:

@@ -61,3 +61,39 @@ def test_a_fresh_out_folder_restores_the_published_runs(tmp_path):
     assert json.loads((out / "smoke" / "ce_apg_cartpole_5.json").read_text()) == published[0]  # not retrained
     table = json.loads((results / "paper_tables_smoke_results.json").read_text())
     assert table == published
+
+
+def test_unknown_set_field_is_a_usage_error(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        pt.main(["--budget", "smoke", "--algos", "ce_apg", "--variant", "x", "--set", "warmup_horizon=300",
+                 "--cpu-devices", str(len(jax.devices("cpu")))])
+    assert exit_info.value.code == 2  # argparse's usage error, before any training
+    assert "no field warmup_horizon;" in capsys.readouterr().err
+
+
+def test_a_finished_run_of_another_config_is_not_tabled_as_this_one(tmp_path):
+    cfg = pt.config("ce_apg", "acrobot", "laptop")
+    saved = json.loads(json.dumps(pt.apg.config_to_dict(cfg)))
+    pt.check_same_config("run.json", saved, cfg)  # the same protocol: reused
+    old = dict(saved, iterations=saved["iterations"] + 1, apg_steps=saved["apg_steps"] - 1)
+    with pytest.raises(SystemExit, match=r"run.json was trained with another config \(apg_steps: run .*iterations"):
+        pt.check_same_config("run.json", old, cfg)
+    # a field added to the config class after the run was saved counts as unchanged while it has its default
+    pt.check_same_config("run.json", {k: v for k, v in saved.items() if k != "warmup_upright"}, cfg)
+    with pytest.raises(SystemExit, match="warmup_upright"):
+        pt.check_same_config("run.json", {k: v for k, v in saved.items() if k != "warmup_upright"},
+                             pt.with_overrides(cfg, {"warmup_upright": 0.25}))
+    # and one_run refuses to reuse it
+    (tmp_path / "ce_apg_acrobot_0.json").write_text(json.dumps({"return": 1.0, "config": old}))
+    with pytest.raises(SystemExit, match="another config"):
+        pt.one_run("ce_apg", "acrobot", 0, "laptop", cfg, str(tmp_path), progress=False)
+
+
+def test_result_files_are_written_whole(tmp_path):
+    from benchmarks._files import write_json
+
+    path = tmp_path / "r.json"
+    path.write_text('{"old": true}')
+    write_json(path, {"new": [1, 2]})
+    assert json.loads(path.read_text()) == {"new": [1, 2]}
+    assert [p.name for p in tmp_path.iterdir()] == ["r.json"]  # no temporary file left beside it
