@@ -10,7 +10,7 @@
 For every (algorithm, task, seed) it trains, evaluates the final deterministic policy on 16 fixed random
 starts, and records the mean return, whether every evaluation episode balanced, env steps and wall-clock
 seconds. Runs are checkpointed under ``--out`` and skipped when their result exists, so the benchmark can
-be resumed. Writes ``--out/<budget>/results.json`` and ``tables.md`` (mean +- std over seeds, fraction of
+be resumed; a result trained with another config than the selected one stops the script, naming the changed fields. Writes ``--out/<budget>/results.json`` and ``tables.md`` (mean +- std over seeds, fraction of
 seeds that balance, the paper's numbers beside ours), and the same as
 ``benchmarks/results/paper_tables_<budget>_{results.json,tables.md}``, from every finished run of the budget.
 ``--set FIELD=VALUE`` (repeatable) changes a field of every selected algorithm's config; such runs need a
