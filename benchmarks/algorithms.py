@@ -59,7 +59,7 @@ import jax.numpy as jnp  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from benchmarks._files import write_json  # noqa: E402
+from benchmarks._files import write_json, write_text  # noqa: E402
 from lagrange.tasks import balanced, make_task  # noqa: E402
 from optim import ce_apg, shac  # noqa: E402
 from optim.apg import episode  # noqa: E402
@@ -408,8 +408,7 @@ def main(argv=None):
                         "eval_episodes": EVAL_EPISODES, "jax": jax.__version__, "devices": str(jax.devices()),
                         "machine": platform.platform(), "cpus": os.cpu_count(), "runs_dir": runs_dir},
                "runs": runs}
-    with open(json_path, "w") as f:
-        json.dump(results, f, indent=1)
+    write_json(json_path, results)
     return write_outputs(results, args.out, tag)
 
 
@@ -488,8 +487,7 @@ def write_table(results, path):
                   f"`{imported[0]['source']}`), not trained by this script: same 16 evaluation starts, final "
                   "policy `trainer.policy(state)`; balanced episodes as recorded there. Their config(s): "
                   + "; ".join(f"`{c}`" for c in cfgs) + "."]
-    with open(path, "w") as f:
-        f.write("\n".join(lines) + "\n")
+    write_text(path, "\n".join(lines) + "\n")
     print("\n".join(lines))
 
 

@@ -33,8 +33,8 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
 
-from benchmarks._files import write_json  # noqa: E402
-from optim import apg, ce_apg, cem, papg  # noqa: E402
+from benchmarks._files import write_json, write_text  # noqa: E402
+from optim import apg, ce_apg, cem, checkpoint, papg  # noqa: E402
 from optim._loop import comparable_config, run  # noqa: E402
 from optim.apg import evaluate  # noqa: E402
 from optim.devices import cpu_core_count, use_cpu_cores  # noqa: E402
@@ -153,10 +153,8 @@ def check_same_config(path, saved: dict, cfg) -> None:
     otherwise be tabled as the new protocol. Fields added to the config since are compared only when changed."""
     if not saved:  # a result without its config (none of ours): nothing to compare
         return
-    now = comparable_config(cfg, saved)
-    diff = sorted(k for k in set(saved) | set(now) if saved.get(k) != now.get(k))
-    if diff:
-        detail = "; ".join(f"{k}: run {saved.get(k)!r}, now {now.get(k)!r}" for k in diff)
+    detail = checkpoint.config_difference(saved, comparable_config(cfg, saved), saved_as="run", now_as="now")
+    if detail:
         raise SystemExit(f"{path} was trained with another config ({detail}). Move it away to retrain it, or give "
                          f"the changed protocol a --variant NAME")
 
@@ -233,8 +231,7 @@ def main(argv=None):
         os.makedirs(folder, exist_ok=True)
         stem = "" if folder == out else f"paper_tables_{name}_"
         write_json(os.path.join(folder, f"{stem}results.json"), results, indent=2)
-        with open(os.path.join(folder, f"{stem}tables.md"), "w") as f:
-            f.write(md)
+        write_text(os.path.join(folder, f"{stem}tables.md"), md)
     print(md)
 
 

@@ -69,6 +69,13 @@ def read_header(path) -> dict:
     return head
 
 
+def config_difference(saved: dict, config: dict, *, saved_as: str, now_as: str) -> str:
+    """Every field whose value differs between two config dicts, as ``field: <saved_as> old, <now_as> new``
+    joined by ``; `` (empty when they agree)."""
+    diff = sorted(k for k in set(saved) | set(config) if saved.get(k) != config.get(k))
+    return "; ".join(f"{k}: {saved_as} {saved.get(k)!r}, {now_as} {config.get(k)!r}" for k in diff)
+
+
 def load(path, like, *, config: dict | None = None):
     """``(state, header)`` from ``path``; ``like`` is a state of the same structure (e.g. ``trainer.init(key)``).
 
@@ -77,9 +84,7 @@ def load(path, like, *, config: dict | None = None):
     path = os.fspath(path)
     head = read_header(path)
     if config is not None and head["config"] != config:
-        saved = head["config"]
-        diff = sorted(k for k in set(saved) | set(config) if saved.get(k) != config.get(k))
-        detail = ", ".join(f"{k}: checkpoint {saved.get(k)!r} vs requested {config.get(k)!r}" for k in diff)
+        detail = config_difference(head["config"], config, saved_as="checkpoint", now_as="requested")
         raise CheckpointError(f"{path} was written with a different config ({detail})")
     with open(path, "rb") as f:
         f.readline()
