@@ -117,8 +117,8 @@ def build_task(cfg, task: Task | None = None) -> Task:
         if cfg.task == "custom":
             raise ValueError(f"{type(cfg).__name__}.task is 'custom': pass the Task to make_trainer(config, task)")
         task = make_task(cfg.task)
-        if getattr(cfg, "trig_observation", False):
-            task = dataclasses.replace(task, trig=True)
+    if getattr(cfg, "trig_observation", False) and not task.trig:  # a given task too, not silently ignored
+        task = dataclasses.replace(task, trig=True)
     if cfg.horizon != task.horizon:
         task = dataclasses.replace(task, horizon=cfg.horizon)
     return task

@@ -101,6 +101,14 @@ def test_custom_task_must_be_passed():
         ce_apg.make_trainer(ce_apg.CEAPGConfig(task="custom"))
 
 
+def test_trig_observation_applies_to_a_passed_task():
+    chain = lg.Chain([lg.Link("revolute", mass=1.0, length=1.0, gear=5.0)])
+    task = chain_swingup(chain, dt=0.05, horizon=20)
+    on = ce_apg.make_trainer(ce_apg.CEAPGConfig(task="custom", horizon=20, trig_observation=True), task).task
+    off = ce_apg.make_trainer(ce_apg.CEAPGConfig(task="custom", horizon=20), task).task
+    assert on.trig and on.observation_size == 3 and not off.trig and off.observation_size == 2
+
+
 # --------------------------------------------------------------------------- learning
 def test_cem_solves_a_quadratic():
     c = jnp.array([1.5, -2.0, 0.3, 4.0, -0.7])
