@@ -1,0 +1,113 @@
+"""How long does a trained swing-up policy hold the chain up? Its final policy run past the episode's end.
+
+    python -m benchmarks.hold_duration                                  # the acrobot runs of paper_tables --variant ep1
+    python -m benchmarks.hold_duration --runs runs/paper_tables/laptop_ep1h600 --seeds 0 4
+
+CE-APG trains on episodes of a fixed length (the task's 500 steps) and is judged by a hold over their last 20 %.
+This script loads the final checkpoints ``RUNS/ce_apg_<task>_<seed>.eqx`` written by ``benchmarks/paper_tables.py``
+(their configs are read from the checkpoints), runs the final deterministic policy from the same 16 hanging starts as
+the paper-tables evaluation for ``--steps`` control steps instead of the task's horizon (the first ``horizon`` steps
+are that evaluation's episodes: their returns are checked against it), and reports, per episode, the first step at or
+after ``--from-step`` at which some link is more than ``--tolerance`` rad from upright ("leaves upright"; none if it
+never does). Writes ``benchmarks/results/hold_duration_<runs folder name>.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import pathlib
+
+import jax
+import numpy as np
+
+from benchmarks._files import write_json
+from lagrange.tasks import balanced, wrap
+from optim import ce_apg, checkpoint
+from optim.apg import episode
+from optim.devices import cpu_core_count, use_cpu_cores
+
+RESULTS = pathlib.Path(__file__).resolve().parent / "results"
+EVAL_EPISODES = 16  # as benchmarks/paper_tables.py
+
+
+def leaves_upright(task, q, *, tolerance: float, from_step: int):
+    """Per episode, the first step >= ``from_step`` at which some link is more than ``tolerance`` rad from upright
+    (absolute orientation, as ``lagrange.tasks.balanced`` measures it), or None."""
+    q = np.asarray(q)
+    rel = q[..., 1:] if task.cart else q
+    up = np.abs(np.asarray(wrap(np.cumsum(rel, axis=-1) - np.pi))).max(axis=-1)  # (episodes, T)
+    out = []
+    for row in up:
+        idx = np.nonzero(row[from_step:] > tolerance)[0]
+        out.append(int(from_step + idx[0]) if idx.size else None)
+    return out
+
+
+def one(path: str, seed: int, steps: int, tolerance: float, from_step: int) -> dict:
+    head = checkpoint.read_header(path)
+    saved = dict(head["config"])
+    if saved.pop("algorithm", None) != "CEAPGConfig":
+        raise SystemExit(f"{path}: not a CE-APG checkpoint (config algorithm {head['config'].get('algorithm')!r})")
+    names = {f.name for f in dataclasses.fields(ce_apg.CEAPGConfig)}
+    cfg = ce_apg.CEAPGConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in saved.items() if k in names})
+    trainer = ce_apg.make_trainer(cfg)
+    state, _ = checkpoint.load(path, trainer.init(jax.random.PRNGKey(seed)))
+    policy, norm = trainer.policy(state)
+    task = trainer.task
+    long = dataclasses.replace(task, horizon=steps)
+    keys = jax.random.split(jax.random.PRNGKey(10_000 + seed), EVAL_EPISODES)  # paper_tables' evaluation starts
+    eps = jax.jit(jax.vmap(lambda k: episode(long, policy, norm, k)))(keys)
+    q = np.asarray(eps.q)
+    own = jax.jit(jax.vmap(lambda k: episode(task, policy, norm, k)))(keys)  # the task's own episodes
+    leave = leaves_upright(task, q, tolerance=tolerance, from_step=from_step)
+    return {
+        "seed": seed, "checkpoint": path, "iteration": int(state.iteration),
+        "return": float(np.mean(own.ret)),
+        "balanced": [bool(b) for b in np.asarray(balanced(task, own.q))],
+        "leaves_upright_at": leave,
+        "still_up_at_end": sum(x is None for x in leave),
+    }
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--runs", default="runs/paper_tables/laptop_ep1",
+                   help="folder of paper_tables checkpoints ce_apg_<task>_<seed>.eqx")
+    p.add_argument("--task", choices=("acrobot", "cartpole", "double_cartpole"), default="acrobot")
+    p.add_argument("--seeds", nargs="+", type=int, default=list(range(8)))
+    p.add_argument("--steps", type=int, default=2000, help="control steps to run each policy for")
+    p.add_argument("--tolerance", type=float, default=0.5, help="rad from upright that counts as having left it")
+    p.add_argument("--from-step", type=int, default=400, help="first step at which leaving upright is looked for")
+    p.add_argument("--cpu-devices", type=int, default=1)
+    p.add_argument("--out", default=None, help="result file (default benchmarks/results/hold_duration_<runs>.json)")
+    args = p.parse_args(argv)
+    for name, v, lo in (("--steps", args.steps, 1), ("--from-step", args.from_step, 0), ("--cpu-devices", args.cpu_devices, 1)):
+        if v < lo:
+            raise SystemExit(f"{name} must be >= {lo}, got {v}")
+    if not args.tolerance > 0:
+        raise SystemExit(f"--tolerance must be > 0, got {args.tolerance}")
+    use_cpu_cores(min(args.cpu_devices, cpu_core_count()))
+    rows = []
+    for seed in args.seeds:
+        path = os.path.join(args.runs, f"ce_apg_{args.task}_{seed}.eqx")
+        if not os.path.exists(path):
+            raise SystemExit(f"{path} does not exist: run benchmarks/paper_tables.py for seed {seed} first "
+                             f"(--runs names the folder it writes, e.g. runs/paper_tables/laptop_ep1)")
+        r = one(path, seed, args.steps, args.tolerance, args.from_step)
+        left = [x for x in r["leaves_upright_at"] if x is not None]
+        print(f"seed {seed}: return {r['return']:.0f}, {sum(r['balanced'])} of {EVAL_EPISODES} balanced; leaves "
+              f"{args.tolerance} rad at steps {min(left) if left else '-'}..{max(left) if left else '-'}, "
+              f"{r['still_up_at_end']} of {EVAL_EPISODES} still up at step {args.steps}", flush=True)
+        rows.append(r)
+    out = {"runs": args.runs, "task": args.task, "steps": args.steps, "tolerance": args.tolerance,
+           "from_step": args.from_step, "episodes": EVAL_EPISODES, "rows": rows}
+    path = args.out or str(RESULTS / f"hold_duration_{os.path.basename(os.path.normpath(args.runs))}.json")
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    write_json(path, out)
+    print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()
