@@ -23,7 +23,7 @@ import jax
 import numpy as np
 
 from benchmarks._files import write_json
-from lagrange.tasks import balanced, wrap
+from lagrange.tasks import balanced, upright_error
 from optim import ce_apg, checkpoint
 from optim.apg import episode
 from optim.devices import cpu_core_count, use_cpu_cores
@@ -34,10 +34,8 @@ EVAL_EPISODES = 16  # as benchmarks/paper_tables.py
 
 def leaves_upright(task, q, *, tolerance: float, from_step: int):
     """Per episode, the first step >= ``from_step`` at which some link is more than ``tolerance`` rad from upright
-    (absolute orientation, as ``lagrange.tasks.balanced`` measures it), or None."""
-    q = np.asarray(q)
-    rel = q[..., 1:] if task.cart else q
-    up = np.abs(np.asarray(wrap(np.cumsum(rel, axis=-1) - np.pi))).max(axis=-1)  # (episodes, T)
+    (``lagrange.tasks.upright_error``, which ``balanced`` judges too), or None."""
+    up = np.asarray(upright_error(task, q))  # (episodes, T)
     out = []
     for row in up:
         idx = np.nonzero(row[from_step:] > tolerance)[0]

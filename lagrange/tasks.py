@@ -70,7 +70,7 @@ from lagrange.integrate import step as _step
 from lagrange.solvers import RK4
 
 __all__ = ["TaskState", "Task", "control_step", "acrobot", "cartpole", "double_cartpole", "make_task", "TASKS",
-           "balanced", "wrap", "chain_swingup"]
+           "balanced", "upright_error", "wrap", "chain_swingup"]
 
 
 def wrap(angle):
@@ -168,8 +168,7 @@ class Task(eqx.Module):
 
     def link_angles(self, state: TaskState):
         """Absolute pole orientations (n_links,), wrapped, 0 = pointing straight up."""
-        rel = state.q[1:] if self.cart else state.q
-        return wrap(jnp.cumsum(rel) - jnp.pi)
+        return _link_angles(self, state.q)
 
     def angular_velocities(self, state: TaskState):
         return state.qd[1:] if self.cart else state.qd
@@ -243,6 +242,16 @@ def balanced(task: Task, q, *, fraction: float = 0.2, tolerance: float = 0.2):
     q = jnp.asarray(q)
     T = q.shape[-2]
     start = T - max(1, int(np.ceil(fraction * T)))
-    rel = q[..., start:, 1:] if task.cart else q[..., start:, :]
-    up = wrap(jnp.cumsum(rel, axis=-1) - jnp.pi)
-    return jnp.all(jnp.abs(up) <= tolerance, axis=(-2, -1))
+    return jnp.all(upright_error(task, q[..., start:, :]) <= tolerance, axis=-1)
+
+
+def upright_error(task: Task, q):
+    """The largest angle (rad) by which any pole is away from upright, per step: ``q`` (..., n) -> (...).
+
+    Measured on each link's absolute orientation (the sum of the joint angles from the base), the cart excluded."""
+    return jnp.max(jnp.abs(_link_angles(task, jnp.asarray(q))), axis=-1)
+
+
+def _link_angles(task: Task, q):
+    rel = q[..., 1:] if task.cart else q
+    return wrap(jnp.cumsum(rel, axis=-1) - jnp.pi)
