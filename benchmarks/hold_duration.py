@@ -59,11 +59,14 @@ def one(path: str, seed: int, steps: int, tolerance: float, from_step: int) -> d
     eps = jax.jit(jax.vmap(lambda k: episode(long, policy, norm, k)))(keys)
     q = np.asarray(eps.q)
     own = jax.jit(jax.vmap(lambda k: episode(task, policy, norm, k)))(keys)  # the task's own episodes
+    own_q = np.asarray(own.q)
+    prefix = float(np.max(np.abs(q[:, :own_q.shape[1]] - own_q)))  # the long run starts as the task's episode
     leave = leaves_upright(task, q, tolerance=tolerance, from_step=from_step)
     return {
-        "seed": seed, "checkpoint": path, "iteration": int(state.iteration),
+        "seed": seed, "checkpoint": path, "iteration": int(state.iteration), "horizon": task.horizon,
         "return": float(np.mean(own.ret)),
         "balanced": [bool(b) for b in np.asarray(balanced(task, own.q))],
+        "prefix_max_abs_difference": prefix,
         "leaves_upright_at": leave,
         "still_up_at_end": sum(x is None for x in leave),
     }
@@ -97,7 +100,8 @@ def main(argv=None):
         left = [x for x in r["leaves_upright_at"] if x is not None]
         print(f"seed {seed}: return {r['return']:.0f}, {sum(r['balanced'])} of {EVAL_EPISODES} balanced; leaves "
               f"{args.tolerance} rad at steps {min(left) if left else '-'}..{max(left) if left else '-'}, "
-              f"{r['still_up_at_end']} of {EVAL_EPISODES} still up at step {args.steps}", flush=True)
+              f"{r['still_up_at_end']} of {EVAL_EPISODES} still up at step {args.steps}; first {r['horizon']} steps "
+              f"differ from the task's episodes by {r['prefix_max_abs_difference']:.1e} rad", flush=True)
         rows.append(r)
     out = {"runs": args.runs, "task": args.task, "steps": args.steps, "tolerance": args.tolerance,
            "from_step": args.from_step, "episodes": EVAL_EPISODES, "rows": rows}

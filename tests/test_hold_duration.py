@@ -39,6 +39,7 @@ def test_runs_a_checkpoint_past_its_horizon(tmp_path):
     rets, bal = evaluate(trainer.task, policy, norm, jax.random.PRNGKey(10_003), hd.EVAL_EPISODES)
     assert row["return"] == pytest.approx(float(np.mean(rets)), rel=1e-6)  # the paper-tables evaluation's episodes
     assert row["balanced"] == [bool(b) for b in np.asarray(bal)]
+    assert row["prefix_max_abs_difference"] == 0.0  # the longer run begins as the task's own episode
     # an untrained policy hangs: every episode is far from upright at step 0
     assert row["leaves_upright_at"] == [0] * hd.EVAL_EPISODES and row["still_up_at_end"] == 0
 
