@@ -1,0 +1,144 @@
+"""How far from upright can the task's torque limit still bring the chain back? Saturated LQR at the top.
+
+    python -m benchmarks.upright_basin                   # the acrobot (seconds)
+    python -m benchmarks.upright_basin --task double_cartpole
+
+The swing-up tasks end in a balance that "balanced" judges to 0.2 rad. This script asks how much of that
+0.2 rad a simple stabilising controller can recover from with the task's own actuator limit. It linearises
+``task.step`` (one control interval, RK4, by ``jax.jacfwd``) at the upright equilibrium, solves the discrete
+LQR (``scipy.linalg.solve_discrete_are``) for ``Q = diag(1 on q, 0.01 on qd)`` and ``R = r``, and runs
+``u = clip(-K dx, -1, 1)`` (``dx`` with wrapped angles) through the nonlinear ``task.step`` from a lean of
+``d`` rad at one joint at a time (joint 1 leans the whole straight chain, a later joint bends it there),
+starting at rest. A start "recovers" when, after ``--steps`` control steps, every coordinate is within 1e-3
+(rad, m) and every velocity within 1e-3 of upright at rest. Reported: per joint, the largest ``d`` on the grid
+up to which every start recovers (``every_lean_recovered``: the whole grid did); the closed-loop spectral radius of the linear model (< 1: stable); the gain.
+A large ``r`` gives the smallest gains (least saturation); LQR is one controller, not the best possible one, so
+the numbers are a lower bound on what any controller could recover from.
+Writes ``benchmarks/results/upright_basin_<task>.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import pathlib
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import scipy.linalg
+
+from benchmarks._files import write_json
+from lagrange.tasks import TASKS, TaskState, make_task, wrap
+
+RESULTS = pathlib.Path(__file__).resolve().parent / "results"
+LEANS = (0.005, 0.01, 0.02, 0.03, 0.04, 0.05, 0.07, 0.1, 0.15, 0.2, 0.3, 0.5, 0.7, 1.0)
+
+
+def upright_state(task) -> np.ndarray:
+    """``(q, qd)`` of the balanced chain at rest: the first pole's joint at pi, the rest (and any cart) at 0."""
+    n = task.chain.n
+    x = np.zeros(2 * n, np.asarray(task.chain.mass).dtype)  # the chain's float type
+    x[1 if task.cart else 0] = np.pi
+    return x
+
+
+def linearise(task):
+    """``(A, B)`` of one control interval at the upright equilibrium, ``x' = A x + B u``."""
+    n = task.chain.n
+    x0 = jnp.asarray(upright_state(task))
+
+    def f(x, u):
+        s = task.step(TaskState(x[:n], x[n:]), u)
+        return jnp.concatenate([s.q, s.qd])
+
+    u0 = jnp.zeros(task.chain.m, x0.dtype)
+    return np.asarray(jax.jacfwd(f, 0)(x0, u0), np.float64), np.asarray(jax.jacfwd(f, 1)(x0, u0), np.float64)
+
+
+def lqr_gain(A, B, r: float):
+    n = A.shape[0] // 2
+    Q = np.diag([1.0] * n + [0.01] * n)
+    R = r * np.eye(B.shape[1])
+    P = scipy.linalg.solve_discrete_are(A, B, Q, R)
+    return np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
+
+
+def make_rollout(task, K, steps: int):
+    """``rollout(x) -> final state`` under the saturated LQR, jitted."""
+    n = task.chain.n
+    x0 = jnp.asarray(upright_state(task))
+    K = jnp.asarray(K, x0.dtype)
+    angular = jnp.arange(n) >= (1 if task.cart else 0)
+
+    def body(x, _):
+        dq = jnp.where(angular, wrap(x[:n] - x0[:n]), x[:n] - x0[:n])
+        u = jnp.clip(-(K @ jnp.concatenate([dq, x[n:]])), -1.0, 1.0)
+        s = task.step(TaskState(x[:n], x[n:]), u)
+        return jnp.concatenate([s.q, s.qd]), None
+
+    def rollout(x):
+        xT, _ = jax.lax.scan(body, jnp.asarray(x, x0.dtype), None, length=steps)
+        dq = jnp.where(angular, wrap(xT[:n] - x0[:n]), xT[:n] - x0[:n])
+        return jnp.max(jnp.abs(jnp.concatenate([dq, xT[n:]])))
+
+    return jax.jit(rollout)
+
+
+def basin(task, r: float, steps: int) -> dict:
+    A, B = linearise(task)
+    K = lqr_gain(A, B, r)
+    rho = float(np.max(np.abs(np.linalg.eigvals(A - B @ K))))
+    rollout = make_rollout(task, K, steps)
+    x0 = upright_state(task)
+    joints = range(1, task.chain.n) if task.cart else range(task.chain.n)
+    per_joint = {}
+    for j in joints:
+        errors = []
+        for d in LEANS:
+            x = x0.copy()
+            x[j] += d
+            errors.append(float(rollout(jnp.asarray(x))))
+        recovered = [e < 1e-3 for e in errors]
+        largest = 0.0
+        for d, ok in zip(LEANS, recovered):
+            if not ok:
+                break
+            largest = d
+        per_joint[str(j)] = {"largest_recovered_lean": largest, "every_lean_recovered": all(recovered),
+                             "final_error": dict(zip(map(str, LEANS), errors))}
+    return {"r": r, "gain": K.tolist(), "closed_loop_spectral_radius": rho, "open_loop_spectral_radius":
+            float(np.max(np.abs(np.linalg.eigvals(A)))), "joints": per_joint}
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--task", choices=tuple(TASKS), default="acrobot")
+    p.add_argument("--r", nargs="+", type=float, default=[1.0, 1e2, 1e4],
+                   help="LQR control weights R (larger: smaller gains)")
+    p.add_argument("--steps", type=int, default=3000, help="control steps before a start is judged")
+    p.add_argument("--out", default=None, help="result file (default benchmarks/results/upright_basin_<task>.json)")
+    args = p.parse_args(argv)
+    if args.steps < 1:
+        raise SystemExit(f"--steps must be >= 1, got {args.steps}")
+    if any(not r > 0 for r in args.r):
+        raise SystemExit(f"--r must be > 0, got {args.r}")
+    task = make_task(args.task)
+    rows = []
+    for r in args.r:
+        row = basin(task, r, args.steps)
+        rows.append(row)
+        leans = ", ".join(f"joint {j}: {v['largest_recovered_lean']} rad{' (all)' if v['every_lean_recovered'] else ''}"
+                          for j, v in row["joints"].items())
+        print(f"{args.task} R = {r:g}: closed-loop spectral radius {row['closed_loop_spectral_radius']:.4f}; "
+              f"largest lean recovered from rest: {leans}", flush=True)
+    out = {"task": args.task, "dt": task.dt, "gear": np.asarray(task.chain.gear).tolist(), "steps": args.steps,
+           "leans": list(LEANS), "rows": rows}
+    path = args.out or str(RESULTS / f"upright_basin_{args.task}.json")
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    write_json(path, out)
+    print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()
