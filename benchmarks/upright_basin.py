@@ -65,7 +65,8 @@ def lqr_gain(A, B, r: float):
 
 
 def make_rollout(task, K, steps: int):
-    """``rollout(x) -> final state`` under the saturated LQR, jitted."""
+    """``rollout(x)``: the largest |coordinate or velocity error| from upright at rest after ``steps`` control steps
+    of the saturated LQR from ``x`` (NaN if the state went non-finite, which counts as not recovered), jitted."""
     n = task.chain.n
     x0 = jnp.asarray(upright_state(task))
     K = jnp.asarray(K, x0.dtype)
