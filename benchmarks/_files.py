@@ -7,8 +7,10 @@ import os
 
 
 def write_text(path, text: str) -> None:
-    """Write ``text`` to ``path`` through ``path.tmp`` and ``os.replace``, so readers never see half a file."""
+    """Write ``text`` to ``path`` through ``path.tmp`` and ``os.replace``, so readers never see half a file;
+    the folder is created if missing."""
     path = os.fspath(path)
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     tmp = path + ".tmp"
     with open(tmp, "w") as f:
         f.write(text)

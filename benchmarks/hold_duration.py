@@ -106,7 +106,6 @@ def main(argv=None):
     out = {"runs": args.runs, "task": args.task, "steps": args.steps, "tolerance": args.tolerance,
            "from_step": args.from_step, "episodes": EVAL_EPISODES, "rows": rows}
     path = args.out or str(RESULTS / f"hold_duration_{os.path.basename(os.path.normpath(args.runs))}.json")
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     write_json(path, out)
     print(f"wrote {path}")
 

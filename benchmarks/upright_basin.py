@@ -20,7 +20,6 @@ Writes ``benchmarks/results/upright_basin_<task>.json``.
 from __future__ import annotations
 
 import argparse
-import os
 import pathlib
 
 import jax
@@ -72,16 +71,18 @@ def make_rollout(task, K, steps: int):
     K = jnp.asarray(K, x0.dtype)
     angular = jnp.arange(n) >= (1 if task.cart else 0)
 
-    def body(x, _):
+    def deviation(x):  # x - x0 with the angles wrapped (x0 is at rest)
         dq = jnp.where(angular, wrap(x[:n] - x0[:n]), x[:n] - x0[:n])
-        u = jnp.clip(-(K @ jnp.concatenate([dq, x[n:]])), -1.0, 1.0)
+        return jnp.concatenate([dq, x[n:]])
+
+    def body(x, _):
+        u = jnp.clip(-(K @ deviation(x)), -1.0, 1.0)
         s = task.step(TaskState(x[:n], x[n:]), u)
         return jnp.concatenate([s.q, s.qd]), None
 
     def rollout(x):
         xT, _ = jax.lax.scan(body, jnp.asarray(x, x0.dtype), None, length=steps)
-        dq = jnp.where(angular, wrap(xT[:n] - x0[:n]), xT[:n] - x0[:n])
-        return jnp.max(jnp.abs(jnp.concatenate([dq, xT[n:]])))
+        return jnp.max(jnp.abs(deviation(xT)))
 
     return jax.jit(rollout)
 
@@ -136,7 +137,6 @@ def main(argv=None):
     out = {"task": args.task, "dt": task.dt, "gear": np.asarray(task.chain.gear).tolist(), "steps": args.steps,
            "leans": list(LEANS), "rows": rows}
     path = args.out or str(RESULTS / f"upright_basin_{args.task}.json")
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     write_json(path, out)
     print(f"wrote {path}")
 
