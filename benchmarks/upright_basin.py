@@ -38,7 +38,7 @@ def upright_state(task) -> np.ndarray:
     """``(q, qd)`` of the balanced chain at rest: the first pole's joint at pi, the rest (and any cart) at 0."""
     n = task.chain.n
     x = np.zeros(2 * n, np.asarray(task.chain.mass).dtype)  # the chain's float type
-    x[1 if task.cart else 0] = np.pi
+    x[task.first_pole] = np.pi
     return x
 
 
@@ -69,7 +69,7 @@ def make_rollout(task, K, steps: int):
     n = task.chain.n
     x0 = jnp.asarray(upright_state(task))
     K = jnp.asarray(K, x0.dtype)
-    angular = jnp.arange(n) >= (1 if task.cart else 0)
+    angular = jnp.arange(n) >= task.first_pole
 
     def deviation(x):  # x - x0 with the angles wrapped (x0 is at rest)
         dq = jnp.where(angular, wrap(x[:n] - x0[:n]), x[:n] - x0[:n])
@@ -93,7 +93,7 @@ def basin(task, r: float, steps: int) -> dict:
     rho = float(np.max(np.abs(np.linalg.eigvals(A - B @ K))))
     rollout = make_rollout(task, K, steps)
     x0 = upright_state(task)
-    joints = range(1, task.chain.n) if task.cart else range(task.chain.n)
+    joints = range(task.first_pole, task.chain.n)
     per_joint = {}
     for j in joints:
         errors = []

@@ -123,9 +123,14 @@ class Task(eqx.Module):
         return self.kind in ("cartpole", "double_cartpole")
 
     @property
+    def first_pole(self) -> int:
+        """Index in ``q`` of the first pole's joint: 1 after a cart, else 0."""
+        return 1 if self.cart else 0
+
+    @property
     def n_links(self) -> int:
         """Number of poles (revolute links)."""
-        return self.chain.n - (1 if self.cart else 0)
+        return self.chain.n - self.first_pole
 
     @property
     def action_size(self) -> int:
@@ -148,10 +153,10 @@ class Task(eqx.Module):
         q = jax.random.uniform(kq, (n,), dtype, -self.noise, self.noise)
         p = float(self.upright)
         if p >= 1:
-            q = q.at[1 if self.cart else 0].add(jnp.pi)
+            q = q.at[self.first_pole].add(jnp.pi)
         elif p > 0:  # the coin has its own key, so p = 0 draws exactly the paper's starts
             up = jax.random.bernoulli(jax.random.fold_in(key, 0x0B), p)
-            q = q.at[1 if self.cart else 0].add(jnp.where(up, jnp.pi, 0.0).astype(dtype))
+            q = q.at[self.first_pole].add(jnp.where(up, jnp.pi, 0.0).astype(dtype))
         qd = jax.random.uniform(kv, (n,), dtype, -self.noise, self.noise)
         return TaskState(q, qd)
 
@@ -162,7 +167,7 @@ class Task(eqx.Module):
     # -- readings -----------------------------------------------------------------------------
     def angles(self, state: TaskState):
         """Pole angles (n_links,), wrapped, 0 = first pole upright / later links straight."""
-        rel = state.q[1:] if self.cart else state.q
+        rel = state.q[self.first_pole:]
         offset = jnp.zeros_like(rel).at[0].set(jnp.pi)
         return wrap(rel - offset)
 
@@ -171,7 +176,7 @@ class Task(eqx.Module):
         return _link_angles(self, state.q)
 
     def angular_velocities(self, state: TaskState):
-        return state.qd[1:] if self.cart else state.qd
+        return state.qd[self.first_pole:]
 
     def observe(self, state: TaskState):
         """The authors' observation vector (see the module table)."""
@@ -253,5 +258,5 @@ def upright_error(task: Task, q):
 
 
 def _link_angles(task: Task, q):
-    rel = q[..., 1:] if task.cart else q
+    rel = q[..., task.first_pole:]
     return wrap(jnp.cumsum(rel, axis=-1) - jnp.pi)

@@ -21,7 +21,7 @@ def test_reset_hangs_with_bounded_noise(name, n, obs):
     assert float(jnp.max(jnp.abs(s.q))) > 0.009  # the noise is really there and uniform on [-0.01, 0.01]
     th = jax.vmap(task.angles)(s)
     # the first pole hangs: |th1| = pi - |noise|, wrapped into (-pi, pi]
-    np.testing.assert_allclose(np.abs(th[:, 0]), np.pi - np.abs(s.q[:, 1 if task.cart else 0]), atol=1e-12)
+    np.testing.assert_allclose(np.abs(th[:, 0]), np.pi - np.abs(s.q[:, task.first_pole]), atol=1e-12)
     assert task.observe(jax.tree_util.tree_map(lambda x: x[0], s)).shape == (obs,)
     assert task.horizon == 500
 
@@ -31,7 +31,7 @@ def test_upright_fraction_of_starts():
     keys = jax.random.split(jax.random.PRNGKey(1), 4000)
     for name in ("acrobot", "double_cartpole"):
         task = tasks.make_task(name)
-        i = 1 if task.cart else 0
+        i = task.first_pole
         paper = jax.vmap(task.reset)(keys)
         mixed = jax.vmap(dataclasses.replace(task, upright=0.25).reset)(keys)
         always = jax.vmap(dataclasses.replace(task, upright=1).reset)(keys)
@@ -54,6 +54,8 @@ def test_paper_parameters():
     assert a.chain.actuated == (1,)  # the elbow; the shoulder is passive
     np.testing.assert_allclose(c.chain.mass, [10.47, 5.02]) and np.testing.assert_allclose(c.chain.gear, [100.0])
     np.testing.assert_allclose(d.chain.mass, [10.47, 5.02, 5.02]) and np.testing.assert_allclose(d.chain.gear, [1000.0])
+    # the first pole's joint follows the cart's
+    assert (a.first_pole, c.first_pole, d.first_pole) == (0, 1, 1) and (a.n_links, c.n_links, d.n_links) == (2, 1, 2)
 
 
 def test_wrap_range():
