@@ -19,12 +19,12 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import pathlib
 import time
 
 import jax
 import numpy as np
+from benchmarks._files import write_json
 
 from optim import ce_apg
 from optim._loop import run
@@ -98,9 +98,8 @@ def main(argv=None):
     out = {"task": args.task, "seed": args.seed, "iterations": iterations, "devices": len(jax.devices()),
            "config": "CEAPGConfig.laptop(task, upright_starts=1, horizon=H, iterations)", "rows": rows}
     if not args.quick:
-        RESULTS.mkdir(exist_ok=True)
         path = RESULTS / f"balance_horizon_{args.task}.json"
-        path.write_text(json.dumps(out, indent=1))
+        write_json(path, out)
         print(f"wrote {path}")
 
 

@@ -31,6 +31,7 @@ jax.config.update("jax_enable_x64", True)
 import equinox as eqx  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
+from benchmarks._files import write_json  # noqa: E402
 
 import lagrange as lg  # noqa: E402
 
@@ -255,7 +256,7 @@ def main(argv=None):
         for n in args.stress_only:
             out["stress"] = [r for r in out["stress"] if r["n"] != n]
             out["stress"] += stress(args.states or 1666, (n,), seed=n, rerun_max=args.rerun_max)
-            path.write_text(json.dumps(out, indent=1))
+            write_json(path, out)
         return
     RESULTS.mkdir(exist_ok=True)
     t0 = time.perf_counter()
@@ -276,7 +277,7 @@ def main(argv=None):
     print(_table(out["gradient_growth"], ["dtype", "horizon_s", "grad_norm", "rel_diff_vs_float64"]))
     suffix = "_quick" if args.quick else ""
     plot_gradients(out["gradient_growth"], RESULTS / f"stability_gradients{suffix}.png")
-    (RESULTS / f"stability{suffix}.json").write_text(json.dumps(out, indent=1))
+    write_json(RESULTS / f"stability{suffix}.json", out)
 
     # the stress batch last: compiling 12- and 20-link chains is the slow part
     sizes = (2, 3, 5, 8) if args.quick else (2, 3, 5, 8, 12, 20)
@@ -285,12 +286,12 @@ def main(argv=None):
     out["stress"] = []
     for n in sizes:
         out["stress"] += stress(total // len(sizes), (n,), seed=n)
-        (RESULTS / f"stability{suffix}.json").write_text(json.dumps(out, indent=1))
+        write_json(RESULTS / f"stability{suffix}.json", out)
     print(_table(out["stress"], ["n", "states", "nonfinite", "unreported", "fd_nonfinite_at_start",
                                  "min_energy_error_before_blowup", "finite_energy_error_gt_1e_2",
                                  "rerun_with_8_substeps", "nonfinite_with_8_substeps"]))
     out["total_wall_s"] = time.perf_counter() - t0
-    (RESULTS / f"stability{suffix}.json").write_text(json.dumps(out, indent=1))
+    write_json(RESULTS / f"stability{suffix}.json", out)
     print(f"wrote {RESULTS}/stability{suffix}.json and stability_gradients{suffix}.png "
           f"({out['total_wall_s']:.0f} s)")
 

@@ -26,13 +26,13 @@ Writes ``benchmarks/results/swingup_bound.json``.
 from __future__ import annotations
 
 import argparse
-import json
 import pathlib
 import time
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from benchmarks._files import write_json
 import optax
 
 from lagrange import tasks
@@ -138,8 +138,7 @@ def main(argv=None):
         "wall_seconds": time.perf_counter() - t_all,
     }
     path = pathlib.Path(out_path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(out, indent=2))
+    write_json(path, out, indent=2)
     print(f"fastest arrival {out['fastest_arrival_seconds']} s; best perfect-hold estimate "
           f"{out['best_perfect_hold_estimate']}; wrote {path}")
     return out

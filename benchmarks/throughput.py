@@ -31,7 +31,6 @@ Writes ``benchmarks/results/throughput[_quick].json`` and ``throughput_scaling[_
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import pathlib
 import time
@@ -43,6 +42,7 @@ jax.config.update("jax_enable_x64", True)
 
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
+from benchmarks._files import write_json  # noqa: E402
 
 import lagrange as lg  # noqa: E402
 from benchmarks._timing import block, median_time  # noqa: E402
@@ -290,7 +290,7 @@ def main(argv=None):
 
     _print(out)
     _plot_scaling(out["scaling"], RESULTS / f"throughput_scaling{suffix}.png")
-    (RESULTS / f"throughput{suffix}.json").write_text(json.dumps(out, indent=1))
+    write_json(RESULTS / f"throughput{suffix}.json", out)
     print(f"wrote {RESULTS}/throughput{suffix}.json and throughput_scaling{suffix}.png")
 
 
@@ -358,7 +358,7 @@ def scaling_main(ns, suffix):
     out["scaling_fit"] = scaling_fit(out["scaling"])
     _print_scaling(out)
     _plot_scaling(out["scaling"], RESULTS / f"throughput_scaling{suffix}.png")
-    (RESULTS / f"throughput_scaling{suffix}.json").write_text(json.dumps(out, indent=1))
+    write_json(RESULTS / f"throughput_scaling{suffix}.json", out)
     print(f"wrote {RESULTS}/throughput_scaling{suffix}.json and throughput_scaling{suffix}.png")
 
 

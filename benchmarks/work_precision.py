@@ -30,7 +30,6 @@ error level and engine) and one ``work_precision_<problem>[_quick].png`` per pro
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import pathlib
 import time
@@ -42,6 +41,7 @@ jax.config.update("jax_enable_x64", True)
 
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
+from benchmarks._files import write_json, write_text  # noqa: E402
 
 import lagrange as lg  # noqa: E402
 from benchmarks._timing import block, median_time  # noqa: E402
@@ -328,8 +328,8 @@ def main(argv=None):
     for name in out["references"]:
         md += [fastest_table(out["rows"], name), "",
                f"reference self-error {out['references'][name]['self_error']:.1e}", ""]
-    (RESULTS / f"work_precision{suffix}.md").write_text("\n".join(md))
-    (RESULTS / f"work_precision{suffix}.json").write_text(json.dumps(out, indent=1))
+    write_text(RESULTS / f"work_precision{suffix}.md", "\n".join(md))
+    write_json(RESULTS / f"work_precision{suffix}.json", out)
     print("\n".join(md))
     print(f"wrote {RESULTS}/work_precision{suffix}.json/.md/.png ({out['total_wall_s']:.0f} s)")
 
