@@ -24,7 +24,7 @@ import numpy as np
 
 from benchmarks._files import write_json
 from lagrange.tasks import balanced, upright_error
-from optim import ce_apg, checkpoint
+from optim import ce_apg
 from optim.apg import episode
 from optim.devices import cpu_core_count, use_cpu_cores
 
@@ -44,14 +44,7 @@ def leaves_upright(task, q, *, tolerance: float, from_step: int):
 
 
 def one(path: str, seed: int, steps: int, tolerance: float, from_step: int) -> dict:
-    head = checkpoint.read_header(path)
-    saved = dict(head["config"])
-    if saved.pop("algorithm", None) != "CEAPGConfig":
-        raise SystemExit(f"{path}: not a CE-APG checkpoint (config algorithm {head['config'].get('algorithm')!r})")
-    names = {f.name for f in dataclasses.fields(ce_apg.CEAPGConfig)}
-    cfg = ce_apg.CEAPGConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in saved.items() if k in names})
-    trainer = ce_apg.make_trainer(cfg)
-    state, _ = checkpoint.load(path, trainer.init(jax.random.PRNGKey(seed)))
+    trainer, state = ce_apg.load_checkpoint(path)
     policy, norm = trainer.policy(state)
     task = trainer.task
     long = dataclasses.replace(task, horizon=steps)

@@ -34,6 +34,7 @@ from optim.apg import (
     flatten_policy,
     scan_train,
 )
+from optim import checkpoint
 from optim.devices import candidate_mesh, jit_replicated
 from policies import Normalizer
 
@@ -286,3 +287,22 @@ def make_trainer(config: CEAPGConfig, task=None) -> Trainer:
 def make_train(config: CEAPGConfig, task=None):
     """``train(key) -> (final CEState, per-iteration metrics)``: the whole run as one jittable function."""
     return scan_train(make_trainer(config, task), config.iterations)
+
+
+def load_checkpoint(path, task=None) -> tuple[Trainer, CEState]:
+    """``(trainer, state)`` from a CE-APG checkpoint, its config read from the file's header (no config needed).
+
+    ``task`` is required for a ``task="custom"`` config, as for :func:`make_trainer`. Raises
+    :class:`optim.checkpoint.CheckpointError` for a checkpoint of another algorithm or a corrupt one."""
+    saved = dict(checkpoint.read_header(path)["config"])
+    algorithm = saved.pop("algorithm", None)
+    if algorithm != CEAPGConfig.__name__:
+        raise checkpoint.CheckpointError(f"{path} is not a CE-APG checkpoint (its config's algorithm is {algorithm!r})")
+    names = {f.name for f in dataclasses.fields(CEAPGConfig)}
+    unknown = sorted(set(saved) - names)
+    if unknown:
+        raise checkpoint.CheckpointError(f"{path} has config fields this CEAPGConfig does not know: {unknown}")
+    config = CEAPGConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in saved.items()})
+    trainer = make_trainer(config, task)
+    state, _ = checkpoint.load(path, trainer.init(jax.random.PRNGKey(0)))
+    return trainer, state

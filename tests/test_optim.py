@@ -294,6 +294,23 @@ def test_resume_a_checkpoint_written_before_a_config_field_existed(tiny_trainer,
         run(other, key, iterations=2, ckpt_path=path, resume=True, progress=False, seed=3)
 
 
+def test_load_checkpoint_rebuilds_the_trainer_from_the_header(tiny_trainer, tmp_path):
+    """``ce_apg.load_checkpoint(path)`` needs no config: the header's gives back the same trainer and state."""
+    key = jax.random.PRNGKey(3)
+    path = str(tmp_path / "run.eqx")
+    state, _ = run(tiny_trainer, key, iterations=2, ckpt_path=path, progress=False, seed=3)
+    trainer, loaded = ce_apg.load_checkpoint(path)
+    assert trainer.config == TINY and params_equal(loaded, state) and int(loaded.iteration) == 2
+    plain = apg.make_trainer(apg.APGConfig(task="acrobot", iterations=1, episodes=1, horizon=5, width=4))
+    checkpoint.save(tmp_path / "apg.eqx", plain.init(key), config=apg.config_to_dict(plain.config))
+    with pytest.raises(checkpoint.CheckpointError, match="not a CE-APG checkpoint.*APGConfig"):
+        ce_apg.load_checkpoint(tmp_path / "apg.eqx")
+    head = checkpoint.read_header(path)
+    checkpoint.save(tmp_path / "new.eqx", state, config=dict(head["config"], later_field=1))
+    with pytest.raises(checkpoint.CheckpointError, match="later_field"):
+        ce_apg.load_checkpoint(tmp_path / "new.eqx")
+
+
 def test_make_train_is_one_jittable_function(tiny_trainer):
     """``make_train(config)(key)`` (lax.scan over iterations) reaches the host loop's state."""
     state, metrics = jax.jit(ce_apg.make_train(TINY))(jax.random.PRNGKey(5))
