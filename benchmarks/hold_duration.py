@@ -22,6 +22,7 @@ import pathlib
 import jax
 import numpy as np
 
+from benchmarks._cli import at_least, paper_tables_checkpoint
 from benchmarks._files import write_json
 from lagrange.tasks import balanced, upright_error
 from optim import ce_apg
@@ -77,18 +78,13 @@ def main(argv=None):
     p.add_argument("--cpu-devices", type=int, default=1)
     p.add_argument("--out", default=None, help="result file (default benchmarks/results/hold_duration_<runs>.json)")
     args = p.parse_args(argv)
-    for name, v, lo in (("--steps", args.steps, 1), ("--from-step", args.from_step, 0), ("--cpu-devices", args.cpu_devices, 1)):
-        if v < lo:
-            raise SystemExit(f"{name} must be >= {lo}, got {v}")
+    at_least(steps=(args.steps, 1), from_step=(args.from_step, 0), cpu_devices=(args.cpu_devices, 1))
     if not args.tolerance > 0:
         raise SystemExit(f"--tolerance must be > 0, got {args.tolerance}")
     use_cpu_cores(min(args.cpu_devices, cpu_core_count()))
     rows = []
     for seed in args.seeds:
-        path = os.path.join(args.runs, f"ce_apg_{args.task}_{seed}.eqx")
-        if not os.path.exists(path):
-            raise SystemExit(f"{path} does not exist: run benchmarks/paper_tables.py for seed {seed} first "
-                             f"(--runs names the folder it writes, e.g. runs/paper_tables/laptop_ep1)")
+        path = paper_tables_checkpoint(args.runs, args.task, seed)
         r = one(path, seed, args.steps, args.tolerance, args.from_step)
         left = [x for x in r["leaves_upright_at"] if x is not None]
         print(f"seed {seed}: return {r['return']:.0f}, {sum(r['balanced'])} of {EVAL_EPISODES} balanced; leaves "

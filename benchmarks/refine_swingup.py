@@ -28,6 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from benchmarks._cli import at_least, paper_tables_checkpoint
 from benchmarks._files import write_json
 from lagrange.tasks import balanced, upright_error
 from optim import ce_apg
@@ -136,18 +137,13 @@ def main(argv=None):
     p.add_argument("--cpu-devices", type=int, default=1)
     p.add_argument("--out", default=None, help="result file (default benchmarks/results/refine_swingup_<runs>.json)")
     args = p.parse_args(argv)
-    for name, v, lo in (("--steps", args.steps, 0), ("--cpu-devices", args.cpu_devices, 1)):
-        if v < lo:
-            raise SystemExit(f"{name} must be >= {lo}, got {v}")
+    at_least(steps=(args.steps, 0), cpu_devices=(args.cpu_devices, 1))
     if not args.lr > 0:
         raise SystemExit(f"--lr must be > 0, got {args.lr}")
     use_cpu_cores(min(args.cpu_devices, cpu_core_count()))
     rows = []
     for seed in args.seeds:
-        path = os.path.join(args.runs, f"ce_apg_{args.task}_{seed}.eqx")
-        if not os.path.exists(path):
-            raise SystemExit(f"{path} does not exist: run benchmarks/paper_tables.py for seed {seed} first "
-                             f"(--runs names the folder it writes, e.g. runs/paper_tables/laptop_warmup)")
+        path = paper_tables_checkpoint(args.runs, args.task, seed)
         r = one(path, seed, args.steps, args.lr)
         arr = [a for a in r["arrival_step"] if a is not None]
         print(f"seed {seed}: policy {np.mean(r['policy_returns']):.1f} ({sum(r['policy_balanced'])} of "

@@ -1,0 +1,22 @@
+"""Command-line helpers shared by the benchmark scripts: argument checks and finding paper-tables checkpoints."""
+
+from __future__ import annotations
+
+import os
+
+
+def at_least(**minimums) -> None:
+    """``at_least(steps=(args.steps, 1), ...)``: exit naming the flag (``--steps``) if a value is below its minimum."""
+    for name, (value, lo) in minimums.items():
+        if value < lo:
+            raise SystemExit(f"--{name.replace('_', '-')} must be >= {lo}, got {value}")
+
+
+def paper_tables_checkpoint(runs: str, task: str, seed: int) -> str:
+    """``runs/ce_apg_<task>_<seed>.eqx`` as written by ``benchmarks/paper_tables.py``; exits naming the command that
+    makes it if it is missing."""
+    path = os.path.join(runs, f"ce_apg_{task}_{seed}.eqx")
+    if not os.path.exists(path):
+        raise SystemExit(f"{path} does not exist: run benchmarks/paper_tables.py for seed {seed} first (--runs names "
+                         f"the folder it writes, e.g. runs/paper_tables/laptop_ep1 for --variant ep1)")
+    return path
