@@ -21,6 +21,7 @@ import jax
 import jax.numpy as jnp
 from jax.sharding import NamedSharding, PartitionSpec
 
+from optim import checkpoint
 from optim.apg import (
     InnerAPGConfig,
     Trainer,
@@ -34,7 +35,6 @@ from optim.apg import (
     flatten_policy,
     scan_train,
 )
-from optim import checkpoint
 from optim.devices import candidate_mesh, jit_replicated
 from policies import Normalizer
 
