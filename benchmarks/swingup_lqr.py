@@ -170,6 +170,7 @@ def main(argv=None):
     p.add_argument("--r", type=float, default=1.0, help="LQR control weight R (Q as in benchmarks.upright_basin)")
     p.add_argument("--quick", action="store_true", help="the middle T, one seed, 30 CEM iterations, 500 Adam steps")
     p.add_argument("--out", default=None, help="result file (default benchmarks/results/swingup_lqr_<task>.json)")
+    p.add_argument("--plot", default=None, help="also draw the best controller's episode to this PNG")
     args = p.parse_args(argv)
     times, knots, lr = DEFAULTS[args.task]
     times = args.times or ([times[len(times) // 2]] if args.quick else list(times))
@@ -207,8 +208,44 @@ def main(argv=None):
            "best": best, "rows": [{k: v for k, v in r.items() if k not in ("offsets", "actions")} for r in rows]}
     path = args.out or str(RESULTS / f"swingup_lqr_{args.task}.json")
     write_json(path, out)
+    if args.plot and best:
+        plot(task, K, best, args.plot)
+        print(f"drew {args.plot}")
     print(f"best balanced return {out['best_balanced_return']}; wrote {path}")
     return out
+
+
+def plot(task, K, row: dict, path: str) -> None:
+    """Angles (and the cart), and the actuator's force or torque, over the best controller's noise-free episode."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    dtype = jnp.result_type(task.chain.mass)
+    s0 = TaskState(jnp.zeros(task.chain.n, dtype), jnp.zeros(task.chain.n, dtype))
+    ret, q, actions = jax.jit(make_controller(task, K, row["T"]))(jnp.asarray(row["offsets"], dtype), s0)
+    th = np.asarray(jax.vmap(lambda q: task.angles(TaskState(q, jnp.zeros_like(q))))(q))
+    t = np.arange(q.shape[0]) * task.dt
+    fig, axes = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
+    for i in range(th.shape[1]):
+        axes[0].plot(t, th[:, i], label="th1 (0 = upright)" if i == 0 else f"th{i + 1} (0 = straight)")
+    if task.cart:
+        axes[0].plot(t, np.asarray(q[:, 0]), "k:", label="cart x [m]")
+    axes[0].axhspan(-0.2, 0.2, color="g", alpha=0.1, label="balanced band +-0.2")
+    axes[0].axvline(row["T"] * task.dt, color="0.5", lw=0.8, ls="--", label="LQR takes over")
+    axes[0].set_ylabel("angle [rad]")
+    axes[0].legend(fontsize=7, loc="upper right")
+    axes[1].plot(t[:-1], np.asarray(actions) * float(np.asarray(task.chain.gear)[0]))
+    axes[1].axvline(row["T"] * task.dt, color="0.5", lw=0.8, ls="--")
+    axes[1].set_ylabel("force [N]" if task.cart else "torque [N m]")
+    axes[1].set_xlabel("time [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    axes[0].set_title(f"{task.kind}: open-loop swing-up ({row['T'] * task.dt:.2f} s) + LQR, return {float(ret):.0f}")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 if __name__ == "__main__":

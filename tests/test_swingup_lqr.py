@@ -66,7 +66,8 @@ def test_cem_finds_the_maximum_of_a_quadratic():
 def test_main_writes_a_replayable_result(tmp_path):
     out = tmp_path / "s.json"
     sl.main(["--task", "cartpole", "--times", "40", "--seeds", "0", "--population", "256", "--elites", "16",
-             "--iterations", "15", "--refine-steps", "50", "--out", str(out)])
+             "--iterations", "15", "--refine-steps", "50", "--out", str(out), "--plot", str(tmp_path / "best.png")])
+    assert (tmp_path / "best.png").stat().st_size > 10_000  # the best controller's episode, drawn
     d = json.loads(out.read_text())
     row = d["rows"][0]
     assert row["T"] == 40 and row["return"] >= row["cem_return"] - 1e-6 * abs(row["cem_return"])
