@@ -26,8 +26,8 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optax
 
+from benchmarks._ascent import adam_best_seen
 from benchmarks._cli import at_least, paper_tables_checkpoint
 from benchmarks._files import write_json
 from lagrange.tasks import balanced, upright_error
@@ -56,35 +56,13 @@ def rollout(task, policy, norm, s0, z):
 
 def refine(task, policy, norm, starts, *, steps: int, learning_rate: float):
     """Adam (cosine-decayed ``learning_rate`` -> 1 %) on each start's offset; ``(best z, best return, start return)``."""
-    T, m = task.horizon, task.action_size
-    z0 = jnp.zeros((len(starts.q), T, m), starts.q.dtype)
-    opt = optax.adam(optax.cosine_decay_schedule(learning_rate, max(steps, 1), 0.01))
+    z0 = jnp.zeros((len(starts.q), task.horizon, task.action_size), starts.q.dtype)
 
-    def value_and_grad(z, s0):
-        return jax.value_and_grad(lambda z: rollout(task, policy, norm, s0, z)[0])(z)
+    def one_start(z, s0):
+        return adam_best_seen(lambda z: rollout(task, policy, norm, s0, z)[0], z, steps=steps,
+                              learning_rate=learning_rate)
 
-    @jax.jit
-    def run(z, starts):
-        ret0 = jax.vmap(lambda s, z: rollout(task, policy, norm, s, z)[0])(starts, z)
-
-        def body(carry, _):
-            z, st, best_z, best = carry
-            ret, g = jax.vmap(value_and_grad)(z, starts)
-            better = jnp.isfinite(ret) & (ret > best)
-            best_z = jnp.where(better[:, None, None], z, best_z)
-            best = jnp.where(better, ret, best)
-            g = jnp.where(jnp.isfinite(g), -g, 0.0)
-            upd, st = jax.vmap(opt.update)(g, st)
-            return (optax.apply_updates(z, upd), st, best_z, best), None
-
-        init = (z, jax.vmap(opt.init)(z), z, ret0)
-        (z, _, best_z, best), _ = jax.lax.scan(body, init, None, length=steps)
-        # the last update is not yet scored
-        last = jax.vmap(lambda s, z: rollout(task, policy, norm, s, z)[0])(starts, z)
-        better = jnp.isfinite(last) & (last > best)
-        return jnp.where(better[:, None, None], z, best_z), jnp.where(better, last, best), ret0
-
-    return run(z0, starts)
+    return jax.jit(jax.vmap(one_start))(z0, starts)
 
 
 def arrival(task, q, tolerance: float = 0.2):

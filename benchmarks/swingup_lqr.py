@@ -33,8 +33,8 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optax
 
+from benchmarks._ascent import adam_best_seen
 from benchmarks._cli import at_least
 from benchmarks._files import write_json
 from benchmarks.upright_basin import linearise, lqr_gain, upright_state
@@ -99,41 +99,23 @@ def cem(score, knots: int, key, *, population: int, elites: int, iterations: int
 
 def refine(episode, z, s0, *, steps: int, learning_rate: float):
     """Adam (cosine-decayed to 1 %) on every offset for the episode's return; ``(best z, best return)`` seen."""
-    opt = optax.adam(optax.cosine_decay_schedule(learning_rate, max(steps, 1), 0.01))
-    value_and_grad = jax.value_and_grad(lambda z: episode(z, s0)[0])
-
-    @jax.jit
-    def run(z):
-        def body(carry, _):
-            z, st, best_z, best = carry
-            v, g = value_and_grad(z)
-            better = jnp.isfinite(v) & (v > best)
-            best_z, best = jnp.where(better, z, best_z), jnp.where(better, v, best)
-            upd, st = opt.update(jnp.where(jnp.isfinite(g), -g, 0.0), st)
-            return (optax.apply_updates(z, upd), st, best_z, best), None
-
-        best = episode(z, s0)[0]
-        (z, _, best_z, best), _ = jax.lax.scan(body, (z, opt.init(z), z, best), None, length=steps)
-        last = episode(z, s0)[0]  # the last update is not scored inside the loop
-        better = jnp.isfinite(last) & (last > best)
-        return jnp.where(better, z, best_z), jnp.where(better, last, best)
-
-    z, best = run(z)
+    z, best, _ = jax.jit(lambda z: adam_best_seen(lambda z: episode(z, s0)[0], z, steps=steps,
+                                                  learning_rate=learning_rate))(z)
     return z, float(best)
 
 
-def rerun_float64(task_name: str, K, T: int, z) -> tuple[float, bool]:
+def rerun_float64(task, K, T: int, z) -> tuple[float, bool]:
     """The controller's noise-free episode re-run in float64: ``(return, balanced)``. A swing-up that arrives at the
     edge of the LQR's basin can depend on round-off; one that holds in both precisions does not."""
     with jax.enable_x64(True):
-        task = make_task(task_name)
+        task = make_task(task.kind)  # rebuilt inside the context: float64 parameters
         episode = make_controller(task, K, T)
         s0 = TaskState(jnp.zeros(task.chain.n), jnp.zeros(task.chain.n))
         ret, q, _ = jax.jit(episode)(jnp.asarray(z, jnp.float64), s0)
         return float(ret), bool(balanced(task, q))
 
 
-def one(task_name: str, task, K, T: int, seed: int, *, knots: int, population: int, elites: int, iterations: int,
+def one(task, K, T: int, seed: int, *, knots: int, population: int, elites: int, iterations: int,
         refine_steps: int, learning_rate: float) -> dict:
     t0 = time.perf_counter()
     dtype = jnp.result_type(task.chain.mass)
@@ -144,7 +126,7 @@ def one(task_name: str, task, K, T: int, seed: int, *, knots: int, population: i
                         init_std=3.0, dtype=dtype)
     z, seen = refine(episode, knots_to_offsets(c, T, task.horizon), s0, steps=refine_steps, learning_rate=learning_rate)
     ret, q, actions = jax.jit(episode)(z, s0)
-    ret64, balanced64 = rerun_float64(task_name, K, T, z)
+    ret64, balanced64 = rerun_float64(task, K, T, z)
     starts = jax.vmap(task.reset)(jax.random.split(jax.random.PRNGKey(10_000), EVAL_EPISODES))
     noisy_ret, noisy_q, _ = jax.jit(jax.vmap(lambda s: episode(z, s)))(starts)
     return {
@@ -191,7 +173,7 @@ def main(argv=None):
     rows = []
     for T in times:
         for seed in seeds:
-            r = one(args.task, task, K, T, seed, knots=knots, population=args.population, elites=args.elites,
+            r = one(task, K, T, seed, knots=knots, population=args.population, elites=args.elites,
                     iterations=iterations, refine_steps=refine_steps, learning_rate=lr)
             rows.append(r)
             print(f"T = {T} ({T * task.dt:.2f} s), seed {seed}: CEM {r['cem_return']:.1f} -> refined "
