@@ -20,3 +20,16 @@ def paper_tables_checkpoint(runs: str, task: str, seed: int) -> str:
         raise SystemExit(f"{path} does not exist: run benchmarks/paper_tables.py for seed {seed} first (--runs names "
                          f"the folder it writes, e.g. runs/paper_tables/laptop_ep1 for --variant ep1)")
     return path
+
+
+def add_checkpoint_flags(parser, *, runs: str, seeds: list[int]) -> None:
+    """``--runs``, ``--task``, ``--seeds`` and ``--cpu-devices`` of a script that reads paper-tables checkpoints."""
+    parser.add_argument("--runs", default=runs, help="folder of paper_tables checkpoints ce_apg_<task>_<seed>.eqx")
+    parser.add_argument("--task", choices=("acrobot", "cartpole", "double_cartpole"), default="acrobot")
+    parser.add_argument("--seeds", nargs="+", type=int, default=seeds)
+    parser.add_argument("--cpu-devices", type=int, default=1)
+
+
+def runs_result_path(out: str | None, results, stem: str, runs: str) -> str:
+    """``out``, or ``results/<stem>_<name of the runs folder>.json``."""
+    return out or os.path.join(results, f"{stem}_{os.path.basename(os.path.normpath(runs))}.json")

@@ -16,13 +16,12 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import os
 import pathlib
 
 import jax
 import numpy as np
 
-from benchmarks._cli import at_least, paper_tables_checkpoint
+from benchmarks._cli import add_checkpoint_flags, at_least, paper_tables_checkpoint, runs_result_path
 from benchmarks._files import write_json
 from lagrange.tasks import balanced, upright_error
 from optim import ce_apg
@@ -68,14 +67,10 @@ def one(path: str, seed: int, steps: int, tolerance: float, from_step: int) -> d
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--runs", default="runs/paper_tables/laptop_ep1",
-                   help="folder of paper_tables checkpoints ce_apg_<task>_<seed>.eqx")
-    p.add_argument("--task", choices=("acrobot", "cartpole", "double_cartpole"), default="acrobot")
-    p.add_argument("--seeds", nargs="+", type=int, default=list(range(8)))
+    add_checkpoint_flags(p, runs="runs/paper_tables/laptop_ep1", seeds=list(range(8)))
     p.add_argument("--steps", type=int, default=2000, help="control steps to run each policy for")
     p.add_argument("--tolerance", type=float, default=0.5, help="rad from upright that counts as having left it")
     p.add_argument("--from-step", type=int, default=400, help="first step at which leaving upright is looked for")
-    p.add_argument("--cpu-devices", type=int, default=1)
     p.add_argument("--out", default=None, help="result file (default benchmarks/results/hold_duration_<runs>.json)")
     args = p.parse_args(argv)
     at_least(steps=(args.steps, 1), from_step=(args.from_step, 0), cpu_devices=(args.cpu_devices, 1))
@@ -94,7 +89,7 @@ def main(argv=None):
         rows.append(r)
     out = {"runs": args.runs, "task": args.task, "steps": args.steps, "tolerance": args.tolerance,
            "from_step": args.from_step, "episodes": EVAL_EPISODES, "rows": rows}
-    path = args.out or str(RESULTS / f"hold_duration_{os.path.basename(os.path.normpath(args.runs))}.json")
+    path = runs_result_path(args.out, RESULTS, "hold_duration", args.runs)
     write_json(path, out)
     print(f"wrote {path}")
 

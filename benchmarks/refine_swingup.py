@@ -19,7 +19,6 @@ the refined returns, how many episodes are ``balanced`` before and after, and th
 from __future__ import annotations
 
 import argparse
-import os
 import pathlib
 import time
 
@@ -28,7 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from benchmarks._ascent import adam_best_seen
-from benchmarks._cli import at_least, paper_tables_checkpoint
+from benchmarks._cli import add_checkpoint_flags, at_least, paper_tables_checkpoint, runs_result_path
 from benchmarks._files import write_json
 from lagrange.tasks import balanced, upright_error
 from optim import ce_apg
@@ -106,13 +105,9 @@ def one(path: str, seed: int, steps: int, learning_rate: float) -> dict:
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--runs", default="runs/paper_tables/laptop_warmup",
-                   help="folder of paper_tables checkpoints ce_apg_<task>_<seed>.eqx")
-    p.add_argument("--task", choices=("acrobot", "cartpole", "double_cartpole"), default="acrobot")
-    p.add_argument("--seeds", nargs="+", type=int, default=[3, 5, 7])
+    add_checkpoint_flags(p, runs="runs/paper_tables/laptop_warmup", seeds=[3, 5, 7])
     p.add_argument("--steps", type=int, default=3000, help="Adam steps per start")
     p.add_argument("--lr", type=float, default=1e-2, help="Adam's initial step on the offsets (cosine-decayed to 1 %%)")
-    p.add_argument("--cpu-devices", type=int, default=1)
     p.add_argument("--out", default=None, help="result file (default benchmarks/results/refine_swingup_<runs>.json)")
     args = p.parse_args(argv)
     at_least(steps=(args.steps, 0), cpu_devices=(args.cpu_devices, 1))
@@ -131,7 +126,7 @@ def main(argv=None):
               f"{r['seconds']:.0f} s", flush=True)
         rows.append(r)
     out = {"runs": args.runs, "task": args.task, "episodes": EVAL_EPISODES, "rows": rows}
-    path = args.out or str(RESULTS / f"refine_swingup_{os.path.basename(os.path.normpath(args.runs))}.json")
+    path = runs_result_path(args.out, RESULTS, "refine_swingup", args.runs)
     write_json(path, out)
     print(f"wrote {path}")
 
