@@ -37,6 +37,7 @@ import numpy as np
 from benchmarks._ascent import adam_best_seen
 from benchmarks._cli import at_least
 from benchmarks._files import write_json
+from benchmarks.refine_swingup import arrival
 from benchmarks.upright_basin import linearise, lqr_gain, upright_state
 from lagrange.tasks import TaskState, balanced, make_task, wrap
 
@@ -51,8 +52,8 @@ EDGE = 1.0 - 1e-6  # |LQR command| is clipped below 1 so that atanh stays finite
 
 
 def make_controller(task, K, T: int):
-    """``episode(z, s0) -> (return, q (H+1, n), actions (H,))`` of the swing-up-then-LQR controller with offsets
-    ``z`` (H,) from the state ``s0``."""
+    """``episode(z, s0) -> (return, q (H+1, n), actions (H,), rewards (H,))`` of the swing-up-then-LQR controller with
+    offsets ``z`` (H,) from the state ``s0``."""
     n = task.chain.n
     x0 = jnp.asarray(upright_state(task))
     K = jnp.asarray(K, x0.dtype)
@@ -70,9 +71,27 @@ def make_controller(task, K, T: int):
             return s2, (task.reward(s, a, s2), s2.q, a[0])
 
         _, (r, q, a) = jax.lax.scan(body, s0, (jnp.arange(task.horizon), z[:, None]))
-        return r.sum(), jnp.concatenate([s0.q[None], q]), a
+        return r.sum(), jnp.concatenate([s0.q[None], q]), a, r
 
     return episode
+
+
+def hanging(task) -> TaskState:
+    """The noise-free hanging start, at rest, in the task's float type."""
+    zeros = jnp.zeros(task.chain.n, jnp.result_type(task.chain.mass))
+    return TaskState(zeros, zeros)
+
+
+def arrival_penalties(task, q, rewards) -> dict:
+    """When the episode arrives (``refine_swingup.arrival``: the first step from which every link stays within
+    0.2 rad of upright) and the penalty ``10 x steps - return`` spent before and after it (None: never arrives); 10 is
+    the most a step of the acrobot or double cartpole earns (the cartpole's reward, -th^2, has no such offset)."""
+    arrive = arrival(task, np.asarray(q)[None])[0]
+    rewards = np.asarray(rewards, np.float64)
+    if arrive is None:
+        return {"arrival_step": None, "penalty_before_arrival": None, "penalty_after_arrival": None}
+    return {"arrival_step": arrive, "penalty_before_arrival": float(10 * arrive - rewards[:arrive].sum()),
+            "penalty_after_arrival": float(10 * (rewards.size - arrive) - rewards[arrive:].sum())}
 
 
 def knots_to_offsets(c, T: int, horizon: int):
@@ -110,8 +129,7 @@ def rerun_float64(task, K, T: int, z) -> tuple[float, bool]:
     with jax.enable_x64(True):
         task = make_task(task.kind)  # rebuilt inside the context: float64 parameters
         episode = make_controller(task, K, T)
-        s0 = TaskState(jnp.zeros(task.chain.n), jnp.zeros(task.chain.n))
-        ret, q, _ = jax.jit(episode)(jnp.asarray(z, jnp.float64), s0)
+        ret, q, _, _ = jax.jit(episode)(jnp.asarray(z, jnp.float64), hanging(task))
         return float(ret), bool(balanced(task, q))
 
 
@@ -120,20 +138,21 @@ def one(task, K, T: int, seed: int, *, knots: int, population: int, elites: int,
     t0 = time.perf_counter()
     dtype = jnp.result_type(task.chain.mass)
     episode = make_controller(task, K, T)
-    s0 = TaskState(jnp.zeros(task.chain.n, dtype), jnp.zeros(task.chain.n, dtype))
+    s0 = hanging(task)
     c, cem_return = cem(lambda c: episode(knots_to_offsets(c, T, task.horizon), s0)[0], knots,
                         jax.random.PRNGKey(seed), population=population, elites=elites, iterations=iterations,
                         init_std=3.0, dtype=dtype)
     z, seen = refine(episode, knots_to_offsets(c, T, task.horizon), s0, steps=refine_steps, learning_rate=learning_rate)
-    ret, q, actions = jax.jit(episode)(z, s0)
+    ret, q, actions, rewards = jax.jit(episode)(z, s0)
     ret64, balanced64 = rerun_float64(task, K, T, z)
     starts = jax.vmap(task.reset)(jax.random.split(jax.random.PRNGKey(10_000), EVAL_EPISODES))
-    noisy_ret, noisy_q, _ = jax.jit(jax.vmap(lambda s: episode(z, s)))(starts)
+    noisy_ret, noisy_q, _, _ = jax.jit(jax.vmap(lambda s: episode(z, s)))(starts)
     return {
         "T": T, "swing_up_seconds": T * task.dt, "seed": seed, "cem_return": cem_return,
         "refinement_best_seen": seen, "return": float(ret), "balanced": bool(balanced(task, q)),
         "return_float64": ret64, "balanced_float64": balanced64, "noisy_starts_mean_return": float(jnp.mean(noisy_ret)),
-        "noisy_starts_balanced": int(jnp.sum(balanced(task, noisy_q))), "seconds": time.perf_counter() - t0,
+        "noisy_starts_balanced": int(jnp.sum(balanced(task, noisy_q))), **arrival_penalties(task, q, rewards),
+        "seconds": time.perf_counter() - t0,
         "offsets": np.asarray(z, np.float64).tolist(), "actions": np.asarray(actions, np.float64).tolist(),
     }
 
@@ -204,9 +223,8 @@ def plot(task, K, row: dict, path: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    dtype = jnp.result_type(task.chain.mass)
-    s0 = TaskState(jnp.zeros(task.chain.n, dtype), jnp.zeros(task.chain.n, dtype))
-    ret, q, actions = jax.jit(make_controller(task, K, row["T"]))(jnp.asarray(row["offsets"], dtype), s0)
+    s0 = hanging(task)
+    ret, q, actions, _ = jax.jit(make_controller(task, K, row["T"]))(jnp.asarray(row["offsets"], s0.q.dtype), s0)
     th = np.asarray(jax.vmap(lambda q: task.angles(TaskState(q, jnp.zeros_like(q))))(q))
     t = np.arange(q.shape[0]) * task.dt
     fig, axes = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
