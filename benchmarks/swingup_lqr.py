@@ -27,6 +27,7 @@ the physics allows; it is not an upper bound. Writes ``benchmarks/results/swingu
 from __future__ import annotations
 
 import argparse
+import json
 import pathlib
 import time
 
@@ -172,7 +173,11 @@ def main(argv=None):
     p.add_argument("--quick", action="store_true", help="the middle T, one seed, 30 CEM iterations, 500 Adam steps")
     p.add_argument("--out", default=None, help="result file (default benchmarks/results/swingup_lqr_<task>.json)")
     p.add_argument("--plot", default=None, help="also draw the best controller's episode to this PNG")
+    p.add_argument("--replot", action="store_true",
+                   help="only draw (--plot) the best controller of an existing result file (--out), no search")
     args = p.parse_args(argv)
+    if args.replot:
+        return replot(args)
     times, knots, lr = DEFAULTS[args.task]
     times = args.times or ([times[len(times) // 2]] if args.quick else list(times))
     seeds = args.seeds[:1] if args.quick else args.seeds
@@ -216,36 +221,29 @@ def main(argv=None):
     return out
 
 
-def plot(task, K, row: dict, path: str) -> None:
-    """Angles (and the cart), and the actuator's force or torque, over the best controller's noise-free episode."""
-    import matplotlib
+def replot(args) -> dict:
+    """``--replot``: draw the best controller saved in a result file, with the gain saved beside it."""
+    if not args.plot:
+        raise SystemExit("--replot needs --plot PATH")
+    path = args.out or str(RESULTS / f"swingup_lqr_{args.task}.json")
+    with open(path) as f:
+        out = json.load(f)
+    if out.get("task") != args.task or not out.get("best"):
+        raise SystemExit(f"{path} holds no balanced controller for --task {args.task}")
+    plot(make_task(args.task), np.asarray(out["lqr_gain"]), out["best"], args.plot)
+    print(f"drew {args.plot} from {path}")
+    return out
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+
+def plot(task, K, row: dict, path: str) -> None:
+    """Angles (the cart on its own axis) and the actuator's force or torque over the best controller's noise-free
+    episode, with the step where LQR takes over marked."""
+    from lagrange.plotting import episode_figure
 
     s0 = hanging(task)
     ret, q, actions, _ = jax.jit(make_controller(task, K, row["T"]))(jnp.asarray(row["offsets"], s0.q.dtype), s0)
-    th = np.asarray(jax.vmap(lambda q: task.angles(TaskState(q, jnp.zeros_like(q))))(q))
-    t = np.arange(q.shape[0]) * task.dt
-    fig, axes = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
-    for i in range(th.shape[1]):
-        axes[0].plot(t, th[:, i], label="th1 (0 = upright)" if i == 0 else f"th{i + 1} (0 = straight)")
-    if task.cart:
-        axes[0].plot(t, np.asarray(q[:, 0]), "k:", label="cart x [m]")
-    axes[0].axhspan(-0.2, 0.2, color="g", alpha=0.1, label="balanced band +-0.2")
-    axes[0].axvline(row["T"] * task.dt, color="0.5", lw=0.8, ls="--", label="LQR takes over")
-    axes[0].set_ylabel("angle [rad]")
-    axes[0].legend(fontsize=7, loc="upper right")
-    axes[1].plot(t[:-1], np.asarray(actions) * float(np.asarray(task.chain.gear)[0]))
-    axes[1].axvline(row["T"] * task.dt, color="0.5", lw=0.8, ls="--")
-    axes[1].set_ylabel("force [N]" if task.cart else "torque [N m]")
-    axes[1].set_xlabel("time [s]")
-    for ax in axes:
-        ax.grid(alpha=0.3)
-    axes[0].set_title(f"{task.kind}: open-loop swing-up ({row['T'] * task.dt:.2f} s) + LQR, return {float(ret):.0f}")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    title = f"{task.kind}: open-loop swing-up ({row['T'] * task.dt:.2f} s) + LQR, return {float(ret):.0f}"
+    episode_figure(task, q, actions, path, title=title, marks=[(row["T"] * task.dt, "LQR takes over")])
 
 
 if __name__ == "__main__":

@@ -18,9 +18,8 @@ matplotlib.use("Agg")
 import jax  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib import animation  # noqa: E402
 
-import lagrange as lg  # noqa: E402
+from lagrange.plotting import episode_animation, episode_figure  # noqa: E402
 from lagrange.tasks import Task, balanced  # noqa: E402
 from optim import ce_apg  # noqa: E402
 from optim._loop import run  # noqa: E402
@@ -110,8 +109,9 @@ def main(description: str, default_out: str, config: ce_apg.CEAPGConfig, quick: 
     with open(os.path.join(args.out, "results.json"), "w") as f:
         json.dump(results, f, indent=2)
     learning_curve(history, os.path.join(args.out, "learning_curve.png"), cfg, paper_return)
-    episode_plot(task, ep, os.path.join(args.out, "swingup.png"))
-    episode_gif(task, ep, os.path.join(args.out, "swingup.gif"))
+    title = f"{task.kind}: return {float(ep.ret):.0f}, balanced {bool(balanced(task, ep.q))}"
+    episode_figure(task, ep.q, ep.actions, os.path.join(args.out, "swingup.png"), qd=ep.qd, title=title)
+    episode_animation(task, ep.q, os.path.join(args.out, "swingup.gif"))
     print(f"return {results['return']:.0f} +- {results['return_std']:.0f} over {EVAL_EPISODES} episodes "
           f"({which} policy), balanced in {results['balanced_fraction']:.0%}; "
           f"{results['env_steps']:.2e} env steps, {results['wall_clock_seconds']:.0f} s")
@@ -142,66 +142,4 @@ def learning_curve(history, path, cfg, paper_return):
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
-
-
-def _readings(task: Task, ep):
-    states = lg.tasks.TaskState(ep.q, ep.qd)
-    th = jax.vmap(task.angles)(states)
-    dth = jax.vmap(task.angular_velocities)(states)
-    return np.asarray(th), np.asarray(dth)
-
-
-def episode_plot(task: Task, ep, path):
-    th, dth = _readings(task, ep)
-    t = np.arange(th.shape[0]) * task.dt
-    force = np.asarray(ep.actions) * np.asarray(task.chain.gear)
-    fig, axes = plt.subplots(3, 1, figsize=(7, 7), sharex=True)
-    for i in range(th.shape[1]):
-        lab = "th1 (0 = upright)" if i == 0 else f"th{i + 1} (0 = straight)"
-        axes[0].plot(t, th[:, i], label=lab)
-        axes[1].plot(t, dth[:, i], label=f"dth{i + 1}")
-    if task.cart:  # the cart's position on its own scale (metres; it may drift far where the reward ignores it)
-        cart_ax = axes[0].twinx()
-        cart_ax.plot(t, np.asarray(ep.q[:, 0]), "k:", label="cart x [m] (right axis)")
-        cart_ax.set_ylabel("cart x [m]")
-        cart_ax.legend(fontsize=7, loc="lower right")
-    axes[0].axhspan(-0.2, 0.2, color="g", alpha=0.1, label="balanced band +-0.2")
-    axes[0].set_ylabel("angle [rad]")
-    axes[1].set_ylabel("velocity [rad/s]")
-    unit = "N" if task.cart else "N m"
-    axes[2].plot(t[:-1], force)
-    axes[2].set_ylabel(f"actuation [{unit}]")
-    axes[2].set_xlabel("time [s]")
-    for ax in axes:
-        ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=7, loc="upper right")
-    axes[1].legend(fontsize=7, loc="upper right")
-    axes[0].set_title(f"{task.kind}: return {float(ep.ret):.0f}, balanced {bool(balanced(task, ep.q))}")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
-def episode_gif(task: Task, ep, path, *, every: int | None = None):
-    every = every or max(1, int(round(0.05 / task.dt)))
-    pts = np.asarray(jax.vmap(lambda q: lg.positions(task.chain, q))(ep.q[::every]))
-    reach = float(np.sum(np.asarray(task.chain.length))) + 0.2
-    xs = pts[..., 0]
-    fig, ax = plt.subplots(figsize=(4, 4) if not task.cart else (6, 3.5))
-    xlo, xhi = (min(xs.min() - 0.3, -reach), max(xs.max() + 0.3, reach)) if task.cart else (-reach, reach)
-    ax.set_xlim(xlo, xhi)
-    ax.set_ylim(-reach, reach)
-    ax.set_aspect("equal")
-    ax.axhline(0, color="0.8", lw=0.8)
-    (line,) = ax.plot([], [], "o-", lw=3, color="tab:blue", mfc="k")
-    text = ax.text(0.02, 0.95, "", transform=ax.transAxes, fontsize=8, va="top")
-
-    def frame(i):
-        line.set_data(pts[i, :, 0], pts[i, :, 1])
-        text.set_text(f"t = {i * every * task.dt:4.2f} s")
-        return line, text
-
-    anim = animation.FuncAnimation(fig, frame, frames=pts.shape[0], blit=True)
-    anim.save(path, writer=animation.PillowWriter(fps=int(round(1 / (every * task.dt)))))
     plt.close(fig)

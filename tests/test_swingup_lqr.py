@@ -86,6 +86,13 @@ def test_main_writes_a_replayable_result(tmp_path):
     assert best["penalty_before_arrival"] + best["penalty_after_arrival"] == pytest.approx(
         10 * task.horizon - best["return"], rel=1e-9, abs=1e-6)
     np.testing.assert_allclose(np.asarray(actions), best["actions"], atol=1e-12)
+    # --replot draws the saved best controller again without searching; a file without one for the task is refused
+    sl.main(["--task", "cartpole", "--out", str(out), "--replot", "--plot", str(tmp_path / "again.png")])
+    assert (tmp_path / "again.png").stat().st_size > 10_000
+    with pytest.raises(SystemExit, match="--task acrobot"):
+        sl.main(["--task", "acrobot", "--out", str(out), "--replot", "--plot", str(tmp_path / "no.png")])
+    with pytest.raises(SystemExit, match="--plot"):
+        sl.main(["--task", "cartpole", "--out", str(out), "--replot"])
 
 
 @pytest.mark.parametrize("argv, field", [(["--elites", "5000"], "--elites"), (["--times", "600"], "--times"),

@@ -1,0 +1,96 @@
+"""Pictures of a task episode: angles, velocities and actuation over time (PNG), and the chain moving (GIF).
+
+Used by the examples (``swingup.png``, ``swingup.gif``) and by benchmarks that draw an episode. Built on
+``matplotlib.figure.Figure`` rather than ``pyplot``, so drawing never picks a backend or opens a window, and works
+headless. Not imported by ``import lagrange`` (matplotlib is only loaded when a picture is drawn).
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from lagrange.kinematics import positions
+from lagrange.tasks import Task, TaskState, balanced
+
+__all__ = ["episode_figure", "episode_animation"]
+
+
+def episode_figure(task: Task, q, actions, path: str, *, qd=None, title: str | None = None,
+                   marks: Sequence[tuple[float, str]] = ()) -> None:
+    """Draw an episode to ``path`` (PNG): the task's angles (the cart's position on its own axis), the angular
+    velocities when ``qd`` is given, and the actuator's force or torque.
+
+    ``q`` (T + 1, n) and ``qd`` (T + 1, n) are the visited coordinates and velocities, ``actions`` (T, m) the
+    actions in ``[-1, 1]`` (multiplied by the chain's gear for the plot). ``title`` defaults to the task and whether
+    the episode is balanced; ``marks`` are ``(time in s, label)`` pairs drawn as vertical lines on every panel."""
+    from matplotlib.figure import Figure
+
+    q = jnp.asarray(q)
+    th = np.asarray(jax.vmap(lambda x: task.angles(TaskState(x, jnp.zeros_like(x))))(q))
+    t = np.arange(th.shape[0]) * task.dt
+    force = np.asarray(actions).reshape(len(t) - 1, -1) * np.asarray(task.chain.gear)
+    rows = 3 if qd is not None else 2
+    fig = Figure(figsize=(7, 2.4 * rows))
+    axes = fig.subplots(rows, 1, sharex=True)
+    for i in range(th.shape[1]):
+        axes[0].plot(t, th[:, i], label="th1 (0 = upright)" if i == 0 else f"th{i + 1} (0 = straight)")
+    if task.cart:  # the cart's position on its own scale (metres; it may drift far where the reward ignores it)
+        cart_ax = axes[0].twinx()
+        cart_ax.plot(t, np.asarray(q[:, 0]), "k:", label="cart x [m] (right axis)")
+        cart_ax.set_ylabel("cart x [m]")
+        cart_ax.legend(fontsize=7, loc="lower right")
+    axes[0].axhspan(-0.2, 0.2, color="g", alpha=0.1, label="balanced band +-0.2")
+    axes[0].set_ylabel("angle [rad]")
+    if qd is not None:
+        dth = np.asarray(jax.vmap(task.angular_velocities)(TaskState(q, jnp.asarray(qd))))
+        for i in range(dth.shape[1]):
+            axes[1].plot(t, dth[:, i], label=f"dth{i + 1}")
+        axes[1].set_ylabel("velocity [rad/s]")
+        axes[1].legend(fontsize=7, loc="upper right")
+    axes[-1].plot(t[:-1], force)
+    axes[-1].set_ylabel(f"actuation [{'N' if task.cart else 'N m'}]")
+    axes[-1].set_xlabel("time [s]")
+    for when, label in marks:
+        for k, ax in enumerate(axes):
+            ax.axvline(when, color="0.5", lw=0.8, ls="--", label=label if k == 0 else None)
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7, loc="upper right")
+    if title is None:
+        title = f"{task.kind}: balanced {bool(balanced(task, q))}"
+    axes[0].set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def episode_animation(task: Task, q, path: str, *, every: int | None = None) -> None:
+    """Animate the chain through the coordinates ``q`` (T + 1, n) to ``path`` (GIF, one frame every ``every``
+    control steps; default about 20 frames per simulated second)."""
+    from matplotlib import animation
+    from matplotlib.figure import Figure
+
+    every = every or max(1, int(round(0.05 / task.dt)))
+    pts = np.asarray(jax.vmap(lambda x: positions(task.chain, x))(jnp.asarray(q)[::every]))
+    reach = float(np.sum(np.asarray(task.chain.length))) + 0.2
+    xs = pts[..., 0]
+    fig = Figure(figsize=(6, 3.5) if task.cart else (4, 4))
+    ax = fig.subplots()
+    xlo, xhi = (min(xs.min() - 0.3, -reach), max(xs.max() + 0.3, reach)) if task.cart else (-reach, reach)
+    ax.set_xlim(xlo, xhi)
+    ax.set_ylim(-reach, reach)
+    ax.set_aspect("equal")
+    ax.axhline(0, color="0.8", lw=0.8)
+    (line,) = ax.plot([], [], "o-", lw=3, color="tab:blue", mfc="k")
+    text = ax.text(0.02, 0.95, "", transform=ax.transAxes, fontsize=8, va="top")
+
+    def frame(i):
+        line.set_data(pts[i, :, 0], pts[i, :, 1])
+        text.set_text(f"t = {i * every * task.dt:4.2f} s")
+        return line, text
+
+    anim = animation.FuncAnimation(fig, frame, frames=pts.shape[0], blit=False)
+    anim.save(path, writer=animation.PillowWriter(fps=int(round(1 / (every * task.dt)))))
