@@ -25,7 +25,10 @@ double_cartpole  (x, q1, q2) / (dx, dq1, dq2)     cart force 1000 a N      (x, s
 wrapped angles; it is the double cartpole's layout and an option elsewhere (the acrobot example uses
 it: the wrapped first angle jumps by 2 pi at every swing through hanging). ``upright=p`` starts
 balanced with probability ``p`` (``upright=1``: balance-only variants, used in tests; a fraction is a
-training curriculum, see ``CEAPGConfig.upright_starts``; the paper's tasks use 0).
+training curriculum, see ``CEAPGConfig.upright_starts``; the paper's tasks use 0). ``starts=X`` (K, 2n) replaces the
+hanging start by one of the states ``X[k] = (q, qd)``, drawn uniformly, plus the same noise: a start-state
+curriculum (e.g. states along a known swing-up, training from the end backwards); the ``upright`` coin still
+comes first.
 ``chain_swingup(chain)`` makes the acrobot's task for any fixed-base revolute chain with at least one motor.
 
 Physical parameters (paper-facts; unstated ones chosen and documented in :mod:`lagrange.systems`):
@@ -113,10 +116,18 @@ class Task(eqx.Module):
     solver: object = eqx.field(static=True, default=RK4())
     upright: float = eqx.field(static=True, default=0.0)
     trig: bool = eqx.field(static=True, default=False)
+    starts: jax.Array | None = None
 
     def __check_init__(self):
         if not 0 <= float(self.upright) <= 1:
             raise ValueError(f"Task.upright must be a probability in [0, 1], got {self.upright!r}")
+        if self.starts is not None and not isinstance(self.starts, jax.core.Tracer):
+            shape, want = np.shape(self.starts), 2 * self.chain.n
+            if len(shape) != 2 or shape[0] < 1 or shape[1] != want:
+                raise ValueError(f"Task.starts must be an array of shape (K >= 1, 2 n = {want}) of states (q, qd), "
+                                 f"got shape {shape}")
+            if not np.all(np.isfinite(np.asarray(self.starts))):
+                raise ValueError("Task.starts must be finite")
 
     @property
     def cart(self) -> bool:
@@ -145,20 +156,27 @@ class Task(eqx.Module):
 
     # -- state ------------------------------------------------------------------------------
     def reset(self, key) -> TaskState:
-        """Hanging down, with uniform noise in ``[-noise, noise]`` on every ``q`` and ``qd``; balanced
-        upright instead with probability ``upright`` (1: always, a balance-only task)."""
+        """Hanging down (or a state drawn uniformly from ``starts``), with uniform noise in ``[-noise, noise]`` on
+        every ``q`` and ``qd``; balanced upright instead with probability ``upright`` (1: always, a balance-only
+        task)."""
         n = self.chain.n
         dtype = jnp.result_type(self.chain.mass)
         kq, kv = jax.random.split(key)
         q = jax.random.uniform(kq, (n,), dtype, -self.noise, self.noise)
+        qd = jax.random.uniform(kv, (n,), dtype, -self.noise, self.noise)
+        hanging = jnp.zeros(n, dtype)
+        start_q, start_qd = hanging, hanging
+        if self.starts is not None:  # its own key too, so the noise is the same as without starts
+            x = self.starts[jax.random.randint(jax.random.fold_in(key, 0x5A), (), 0, self.starts.shape[0])]
+            start_q, start_qd = x[:n].astype(dtype), x[n:].astype(dtype)
+        upright = hanging.at[self.first_pole].set(jnp.pi)
         p = float(self.upright)
         if p >= 1:
-            q = q.at[self.first_pole].add(jnp.pi)
+            start_q, start_qd = upright, hanging
         elif p > 0:  # the coin has its own key, so p = 0 draws exactly the paper's starts
             up = jax.random.bernoulli(jax.random.fold_in(key, 0x0B), p)
-            q = q.at[self.first_pole].add(jnp.where(up, jnp.pi, 0.0).astype(dtype))
-        qd = jax.random.uniform(kv, (n,), dtype, -self.noise, self.noise)
-        return TaskState(q, qd)
+            start_q, start_qd = jnp.where(up, upright, start_q), jnp.where(up, hanging, start_qd)
+        return TaskState(q + start_q, qd + start_qd)
 
     def step(self, state: TaskState, action) -> TaskState:
         """One control interval ``dt`` under ``clip(action, -1, 1)`` times the chain's gear."""

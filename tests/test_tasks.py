@@ -46,6 +46,29 @@ def test_upright_fraction_of_starts():
         dataclasses.replace(tasks.acrobot(), upright=1.5)
 
 
+def test_start_states():
+    """``starts=X`` draws each reset's (q, qd) uniformly from the rows of X, plus the task's usual noise; the
+    ``upright`` coin still comes first; a wrong shape or a non-finite row is refused naming the field."""
+    task = tasks.double_cartpole()
+    X = jnp.asarray([[0.5, 1.0, -1.0, 2.0, 0.0, 3.0], [-0.5, 2.0, 0.5, 0.0, -4.0, 1.0], [0.0, 3.0, 0.0, 0.0, 0.0, 0.0]])
+    keys = jax.random.split(jax.random.PRNGKey(2), 3000)
+    paper = jax.vmap(task.reset)(keys)
+    drawn = jax.jit(jax.vmap(dataclasses.replace(task, starts=X).reset))(keys)
+    x = np.concatenate([drawn.q - paper.q, drawn.qd - paper.qd], axis=1)  # the drawn row: the noise is the same
+    row = np.argmin(np.abs(x[:, None, :] - np.asarray(X)[None]).max(-1), axis=1)
+    np.testing.assert_allclose(x, np.asarray(X)[row], atol=1e-6)
+    assert np.all(np.abs(np.bincount(row, minlength=3) / 3000 - 1 / 3) < 0.03)  # uniform: std 0.009
+    mixed = jax.vmap(dataclasses.replace(task, starts=X, upright=0.5).reset)(keys)
+    up = np.asarray(jnp.abs(jax.vmap(task.angles)(mixed)[:, 0]) <= 0.01 + 1e-6) & np.asarray(
+        jnp.abs(mixed.qd).max(-1) <= 0.01)
+    assert 0.46 < up.mean() < 0.54
+    for bad in (X[:, :4], X[0], jnp.zeros((0, 6))):
+        with pytest.raises(ValueError, match=r"Task.starts must be an array of shape \(K >= 1, 2 n = 6\)"):
+            dataclasses.replace(task, starts=bad)
+    with pytest.raises(ValueError, match="Task.starts must be finite"):
+        dataclasses.replace(task, starts=X.at[1, 2].set(jnp.nan))
+
+
 def test_paper_parameters():
     a, c, d = tasks.acrobot(), tasks.cartpole(), tasks.double_cartpole()
     assert (a.dt, c.dt, d.dt) == (0.01, 0.04, 0.01)
