@@ -53,8 +53,8 @@ EDGE = 1.0 - 1e-6  # |LQR command| is clipped below 1 so that atanh stays finite
 
 
 def make_controller(task, K, T: int):
-    """``episode(z, s0) -> (return, q (H+1, n), actions (H,), rewards (H,))`` of the swing-up-then-LQR controller with
-    offsets ``z`` (H,) from the state ``s0``."""
+    """``episode(z, s0) -> (return, states, actions (H,), rewards (H,))`` of the swing-up-then-LQR controller with
+    offsets ``z`` (H,) from the state ``s0``; ``states`` is the visited :class:`TaskState`, ``s0`` included (H+1, n)."""
     n = task.chain.n
     x0 = jnp.asarray(upright_state(task))
     K = jnp.asarray(K, x0.dtype)
@@ -69,10 +69,11 @@ def make_controller(task, K, T: int):
             t, zt = x
             a = jnp.tanh(zt + jnp.where(t < T, 0.0, jnp.arctanh(lqr(s))))
             s2 = task.step(s, a)
-            return s2, (task.reward(s, a, s2), s2.q, a[0])
+            return s2, (task.reward(s, a, s2), s2, a[0])
 
-        _, (r, q, a) = jax.lax.scan(body, s0, (jnp.arange(task.horizon), z[:, None]))
-        return r.sum(), jnp.concatenate([s0.q[None], q]), a, r
+        _, (r, visited, a) = jax.lax.scan(body, s0, (jnp.arange(task.horizon), z[:, None]))
+        states = jax.tree_util.tree_map(lambda x0, xs: jnp.concatenate([x0[None], xs]), s0, visited)
+        return r.sum(), states, a, r
 
     return episode
 
@@ -130,8 +131,8 @@ def rerun_float64(task, K, T: int, z) -> tuple[float, bool]:
     with jax.enable_x64(True):
         task = make_task(task.kind)  # rebuilt inside the context: float64 parameters
         episode = make_controller(task, K, T)
-        ret, q, _, _ = jax.jit(episode)(jnp.asarray(z, jnp.float64), hanging(task))
-        return float(ret), bool(balanced(task, q))
+        ret, states, _, _ = jax.jit(episode)(jnp.asarray(z, jnp.float64), hanging(task))
+        return float(ret), bool(balanced(task, states.q))
 
 
 def one(task, K, T: int, seed: int, *, knots: int, population: int, elites: int, iterations: int,
@@ -144,15 +145,16 @@ def one(task, K, T: int, seed: int, *, knots: int, population: int, elites: int,
                         jax.random.PRNGKey(seed), population=population, elites=elites, iterations=iterations,
                         init_std=3.0, dtype=dtype)
     z, seen = refine(episode, knots_to_offsets(c, T, task.horizon), s0, steps=refine_steps, learning_rate=learning_rate)
-    ret, q, actions, rewards = jax.jit(episode)(z, s0)
+    ret, states, actions, rewards = jax.jit(episode)(z, s0)
+    q = states.q
     ret64, balanced64 = rerun_float64(task, K, T, z)
     starts = jax.vmap(task.reset)(jax.random.split(jax.random.PRNGKey(10_000), EVAL_EPISODES))
-    noisy_ret, noisy_q, _, _ = jax.jit(jax.vmap(lambda s: episode(z, s)))(starts)
+    noisy_ret, noisy, _, _ = jax.jit(jax.vmap(lambda s: episode(z, s)))(starts)
     return {
         "T": T, "swing_up_seconds": T * task.dt, "seed": seed, "cem_return": cem_return,
         "refinement_best_seen": seen, "return": float(ret), "balanced": bool(balanced(task, q)),
         "return_float64": ret64, "balanced_float64": balanced64, "noisy_starts_mean_return": float(jnp.mean(noisy_ret)),
-        "noisy_starts_balanced": int(jnp.sum(balanced(task, noisy_q))), **arrival_penalties(task, q, rewards),
+        "noisy_starts_balanced": int(jnp.sum(balanced(task, noisy.q))), **arrival_penalties(task, q, rewards),
         "seconds": time.perf_counter() - t0,
         "offsets": np.asarray(z, np.float64).tolist(), "actions": np.asarray(actions, np.float64).tolist(),
     }
@@ -236,14 +238,14 @@ def replot(args) -> dict:
 
 
 def plot(task, K, row: dict, path: str) -> None:
-    """Angles (the cart on its own axis) and the actuator's force or torque over the best controller's noise-free
+    """Angles (the cart on its own axis), velocities and the actuator's force or torque over the best controller's noise-free
     episode, with the step where LQR takes over marked."""
     from lagrange.plotting import episode_figure
 
     s0 = hanging(task)
-    ret, q, actions, _ = jax.jit(make_controller(task, K, row["T"]))(jnp.asarray(row["offsets"], s0.q.dtype), s0)
+    ret, states, actions, _ = jax.jit(make_controller(task, K, row["T"]))(jnp.asarray(row["offsets"], s0.q.dtype), s0)
     title = f"{task.kind}: open-loop swing-up ({row['T'] * task.dt:.2f} s) + LQR, return {float(ret):.0f}"
-    episode_figure(task, q, actions, path, title=title, marks=[(row["T"] * task.dt, "LQR takes over")])
+    episode_figure(task, states.q, actions, path, qd=states.qd, title=title, marks=[(row["T"] * task.dt, "LQR takes over")])
 
 
 if __name__ == "__main__":

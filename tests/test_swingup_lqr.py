@@ -24,7 +24,8 @@ def test_the_lqr_phase_holds_the_double_cartpole_from_every_noisy_upright_start(
     task = dataclasses.replace(tasks.double_cartpole(), upright=1.0)
     episode = sl.make_controller(task, gain(task), T=0)  # LQR from the first step, no offsets
     starts = jax.vmap(task.reset)(jax.random.split(jax.random.PRNGKey(0), 16))
-    ret, q, a, _ = jax.vmap(lambda s: episode(jnp.zeros(task.horizon), s))(starts)
+    ret, states, a, _ = jax.vmap(lambda s: episode(jnp.zeros(task.horizon), s))(starts)
+    q = states.q
     assert bool(jnp.all(tasks.balanced(task, q)))
     # 10 per step at most; the +-0.01 start noise costs a little at the beginning only
     assert float(jnp.min(ret)) > 10 * task.horizon - 1.0 and float(jnp.max(ret)) <= 10 * task.horizon
@@ -38,15 +39,18 @@ def test_the_reported_actions_are_the_ones_applied():
     episode = sl.make_controller(task, gain(task), T)
     z = 0.5 * jax.random.normal(jax.random.PRNGKey(1), (task.horizon,))
     s0 = task.reset(jax.random.PRNGKey(2))
-    ret, q, actions, rewards = episode(z, s0)
+    ret, states, actions, rewards = episode(z, s0)
+    q = states.q
     np.testing.assert_allclose(np.asarray(actions[:T]), np.tanh(np.asarray(z[:T])), rtol=1e-12)
 
     def body(s, a):
         s2 = task.step(s, a[None])
-        return s2, (task.reward(s, a[None], s2), s2.q)
+        return s2, (task.reward(s, a[None], s2), s2.q, s2.qd)
 
-    _, (r, q2) = jax.lax.scan(body, s0, actions)
+    _, (r, q2, qd2) = jax.lax.scan(body, s0, actions)
     np.testing.assert_allclose(np.asarray(q[1:]), np.asarray(q2), atol=1e-12)
+    np.testing.assert_allclose(np.asarray(states.qd[1:]), np.asarray(qd2), atol=1e-12)
+    np.testing.assert_array_equal(np.asarray(states.q[0]), np.asarray(s0.q))
     np.testing.assert_allclose(float(ret), float(r.sum()), rtol=1e-12)
     np.testing.assert_allclose(np.asarray(rewards), np.asarray(r), atol=1e-12)
 
@@ -79,7 +83,8 @@ def test_main_writes_a_replayable_result(tmp_path):
     task = tasks.cartpole()
     episode = sl.make_controller(task, np.asarray(d["lqr_gain"]), best["T"])
     s0 = tasks.TaskState(jnp.zeros(2), jnp.zeros(2))
-    ret, q, actions, _ = episode(jnp.asarray(best["offsets"]), s0)
+    ret, states, actions, _ = episode(jnp.asarray(best["offsets"]), s0)
+    q = states.q
     assert float(ret) == pytest.approx(best["return"], rel=1e-9) and bool(tasks.balanced(task, q))
     # a balanced episode arrives; the penalties before and after arrival add up to 10 per step minus the return
     assert best["arrival_step"] is not None and best["arrival_step"] <= task.horizon * 0.8
