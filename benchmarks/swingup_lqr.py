@@ -238,14 +238,16 @@ def replot(args) -> dict:
 
 
 def plot(task, K, row: dict, path: str) -> None:
-    """Angles (the cart on its own axis), velocities and the actuator's force or torque over the best controller's noise-free
-    episode, with the step where LQR takes over marked."""
+    """Angles (the cart on its own axis), velocities and the actuator's force or torque over the best controller's
+    noise-free episode, with the step where LQR takes over marked."""
     from lagrange.plotting import episode_figure
 
     s0 = hanging(task)
-    ret, states, actions, _ = jax.jit(make_controller(task, K, row["T"]))(jnp.asarray(row["offsets"], s0.q.dtype), s0)
+    episode = jax.jit(make_controller(task, K, row["T"]))
+    ret, states, actions, _ = episode(jnp.asarray(row["offsets"], s0.q.dtype), s0)
     title = f"{task.kind}: open-loop swing-up ({row['T'] * task.dt:.2f} s) + LQR, return {float(ret):.0f}"
-    episode_figure(task, states.q, actions, path, qd=states.qd, title=title, marks=[(row["T"] * task.dt, "LQR takes over")])
+    episode_figure(task, states.q, actions, path, qd=states.qd, title=title,
+                   marks=[(row["T"] * task.dt, "LQR takes over")])
 
 
 if __name__ == "__main__":
