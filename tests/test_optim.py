@@ -62,6 +62,7 @@ def test_paper_presets():
     # the paper's schedule: 10^((-3 (T - i) - 6 i) / T)
     for i in (0, 50, 200):
         assert float(c.learning_rate(i)) == pytest.approx(10 ** ((-3 * (200 - i) - 6 * i) / 200), rel=1e-5)
+    assert float(c.learning_rate(260)) == pytest.approx(1e-6, rel=1e-5)  # past the planned iterations: lr_end
     m = cem.config("cartpole")
     assert (m.apg_steps, m.iterations) == (0, 2000)
     with pytest.raises(ValueError, match="apg_steps"):

@@ -1,0 +1,194 @@
+"""A reverse curriculum along a balanced swing-up: can CE-APG learn the double cartpole's swing-up from the hold back?
+
+    python -m benchmarks.reverse_curriculum              # double cartpole, seed 0 (about 15 minutes on two cores)
+    python -m benchmarks.reverse_curriculum --quick      # a smoke run of the same stages, tiny population
+
+CE-APG's double-cartpole policies spin (README); ``benchmarks/swingup_lqr.py`` found a balanced swing-up worth 4396
+(an open-loop swing-up caught by LQR). This script asks whether the learner can follow it backwards. The states
+``X[k] = (q, qd)`` at steps k of that controller's noise-free episode seed the training starts (``Task.starts``, with
+the task's +-0.01 noise). One CE-APG run (the laptop protocol's settings) goes through stages:
+
+1. warm-up at the frontier ``--first`` (near the end of the swing-up): the horizons ``--horizons``, then the task's
+   500 steps (a flat 500-step horizon does not learn the hold, ``benchmarks/balance_horizon.py``);
+2. frontier stages: the frontier moves back by ``--move`` steps; a stage that ends with at least ``--held`` of 16
+   episodes from the new frontier state balanced is kept (and the move grows back to ``--move``), one that does not
+   is rolled back (its training is dropped) and the next try moves half as far; it stops at the hanging start, when
+   the move halves to 0, or after ``--max-stages`` stages;
+3. ``--tail`` iterations on the task's own hanging starts.
+
+Every stage runs ``--per-stage`` CE iterations on ``X[lo:lo+10]`` (the frontier) repeated ``--frontier-weight`` times
+plus every state from the frontier to ``--last`` (so the catch learnt earlier keeps being trained). The learning rate
+is log-linear over the stages of a run without roll-backs (then ``lr_end``). After every stage the best candidate is
+evaluated (16 deterministic episodes each) from the frontier state ``X[lo]`` (+-0.01), from upright, and from the 16
+hanging starts of the paper tables. ``held_back_to`` is the last frontier kept. Writes
+``benchmarks/results/reverse_curriculum_<task>.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import pathlib
+import time
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from benchmarks._cli import at_least
+from benchmarks._files import write_json
+from benchmarks.swingup_lqr import hanging, make_controller
+from lagrange.tasks import make_task
+from optim import ce_apg
+from optim.apg import evaluate
+from optim.devices import cpu_core_count, use_cpu_cores
+
+RESULTS = pathlib.Path(__file__).resolve().parent / "results"
+EVAL_EPISODES = 16  # as benchmarks/paper_tables.py
+
+
+def controller_states(task, controller: dict):
+    """The states ``(H+1, 2n)`` (q then qd) of a ``swingup_lqr`` result's best controller, from the noise-free
+    hanging start, and its return."""
+    best = controller.get("best")
+    if not best:
+        raise SystemExit("the swingup_lqr result file holds no balanced controller ('best' is empty)")
+    s0 = hanging(task)
+    episode = jax.jit(make_controller(task, np.asarray(controller["lqr_gain"]), best["T"]))
+    ret, states, _, _ = episode(jnp.asarray(best["offsets"], s0.q.dtype), s0)
+    return jnp.concatenate([states.q, states.qd], axis=1), float(ret)
+
+
+def warmup(first: int, horizons: list[int], per_stage: int, horizon: int):
+    """The warm-up stages ``(frontier, training horizon, iterations)``: the shorter horizons at ``first``, then the full
+    one there."""
+    return [(first, h, per_stage) for h in horizons if h < horizon] + [(first, horizon, per_stage)]
+
+
+def next_frontier(lo: int, move: int, held: bool, full_move: int) -> tuple[int, int]:
+    """``(frontier, move)`` after a stage tried ``lo - move``: on success the frontier moves there and the move grows
+    back (doubling, at most ``full_move``); on failure the frontier stays and the move halves (0: give up)."""
+    if held:
+        return max(lo - move, 0), min(2 * move, full_move)
+    return lo, move // 2
+
+
+def stage_starts(X, lo: int, last: int, frontier_weight: int):
+    """Training starts of the stage at frontier ``lo``: ``X[lo:lo+10]`` repeated ``frontier_weight`` times, then
+    ``X[lo:last]``."""
+    return jnp.concatenate([jnp.tile(X[lo:lo + 10], (frontier_weight, 1)), X[lo:max(last, lo + 1)]])
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--task", choices=("double_cartpole", "acrobot"), default="double_cartpole")
+    p.add_argument("--controller", default=None,
+                   help="swingup_lqr result file (default benchmarks/results/swingup_lqr_<task>.json)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--first", type=int, default=120, help="the first frontier: a step of the controller's episode")
+    p.add_argument("--last", type=int, default=200, help="training starts reach from the frontier to this step")
+    p.add_argument("--move", type=int, default=5, help="steps the frontier moves back per stage")
+    p.add_argument("--per-stage", type=int, default=6, help="CE iterations per stage")
+    p.add_argument("--horizons", type=int, nargs="*", default=[100, 150, 200, 300, 400])
+    p.add_argument("--frontier-weight", type=int, default=10)
+    p.add_argument("--held", type=int, default=12,
+                   help="episodes of 16 from the frontier state that must balance for a stage to be kept")
+    p.add_argument("--max-stages", type=int, default=60, help="frontier stages tried at most (kept or rolled back)")
+    p.add_argument("--tail", type=int, default=20, help="CE iterations on the task's hanging starts at the end")
+    p.add_argument("--lr-start", type=float, default=None, help="default: the laptop protocol's")
+    p.add_argument("--cpu-devices", type=int, default=None, help="default: every core")
+    p.add_argument("--quick", action="store_true",
+                   help="4 candidates of 2 APG steps, frontier 130, at most 2 moves, one iteration each: a smoke run")
+    p.add_argument("--out", default=None, help="result file (default benchmarks/results/reverse_curriculum_<task>.json)")
+    args = p.parse_args(argv)
+    at_least(first=(args.first, 1), move=(args.move, 1), per_stage=(args.per_stage, 1), tail=(args.tail, 0),
+             frontier_weight=(args.frontier_weight, 1), max_stages=(args.max_stages, 0), held=(args.held, 0))
+    if args.held > EVAL_EPISODES:
+        raise SystemExit(f"--held must be <= {EVAL_EPISODES}, got {args.held}")
+    if args.last <= args.first:
+        raise SystemExit(f"--last must be > --first ({args.first}), got {args.last}")
+    use_cpu_cores(args.cpu_devices or cpu_core_count())
+    task = make_task(args.task)
+    if args.last > task.horizon:
+        raise SystemExit(f"--last must be <= the task's horizon {task.horizon}, got {args.last}")
+    controller_path = args.controller or str(RESULTS / f"swingup_lqr_{args.task}.json")
+    with open(controller_path) as f:
+        X, expert_return = controller_states(task, json.load(f))
+    first, move, per_stage, horizons, tail, max_stages = (args.first, args.move, args.per_stage, args.horizons,
+                                                           args.tail, args.max_stages)
+    overrides = {} if args.lr_start is None else {"lr_start": args.lr_start}
+    if args.quick:
+        first, move, per_stage, horizons, tail, max_stages = 130, 130, 1, [100], 1, 2
+        overrides.update(num_candidates=4, num_elites=2, apg_steps=2, episodes=1, fitness_window=1)
+    warm = warmup(first, horizons, per_stage, task.horizon)
+    planned = len(warm) * per_stage + -(-first // move) * per_stage + tail  # the learning-rate schedule's length
+    cfg = ce_apg.CEAPGConfig.laptop(args.task, iterations=planned, **overrides)
+    upright = dataclasses.replace(task, upright=1.0)
+    eval_key = jax.random.PRNGKey(10_000 + args.seed)  # the paper tables' evaluation starts
+    print(f"{args.task}: controller return {expert_return:.1f}; the learning rate decays over {planned} iterations",
+          flush=True)
+
+    t0 = time.perf_counter()
+    run = {"state": None, "env_steps": 0, "rows": []}
+
+    def stage(lo, h, iterations):
+        """Train ``iterations`` CE iterations from frontier ``lo`` (None: the task's own starts), evaluate, record."""
+        train_task = task if lo is None else dataclasses.replace(
+            task, starts=stage_starts(X, lo, args.last, args.frontier_weight))
+        stage_cfg = dataclasses.replace(cfg, horizon=h)
+        trainer = ce_apg.make_trainer(stage_cfg, train_task)
+        state = run["state"] if run["state"] is not None else trainer.init(jax.random.PRNGKey(args.seed))
+        for _ in range(iterations):
+            state, metrics = trainer.update(state)
+        run["env_steps"] += iterations * stage_cfg.env_steps_per_iteration()
+        policy, norm = trainer.policy(state)
+        ev = eqx.filter_jit(lambda t, k: evaluate(t, policy, norm, k, EVAL_EPISODES))
+        front = dataclasses.replace(task, starts=X[(lo or 0):(lo or 0) + 1])
+        (fr, fb), (hr, hb), (ur, ub) = (ev(t, eval_key) for t in (front, task, upright))
+        row = {"frontier": lo, "training_horizon": h, "iterations": int(state.iteration),
+               "env_steps": run["env_steps"], "best_training_return": float(metrics["best_return"]),
+               "frontier_return": float(jnp.mean(fr)), "frontier_balanced": int(jnp.sum(fb)),
+               "hanging_return": float(jnp.mean(hr)), "hanging_balanced": int(jnp.sum(hb)),
+               "upright_return": float(jnp.mean(ur)), "upright_balanced": int(jnp.sum(ub)),
+               "seconds": time.perf_counter() - t0}
+        print(f"frontier {'hanging (task)' if lo is None else lo}, horizon {h}: iteration {row['iterations']}, "
+              f"best training return {row['best_training_return']:.0f}; balanced from the frontier "
+              f"{row['frontier_balanced']}/16, upright {row['upright_balanced']}/16, hanging {row['hanging_balanced']}/16 "
+              f"(return {row['hanging_return']:.0f}); {row['seconds']:.0f} s", flush=True)
+        run["rows"].append(row)
+        return state, row
+
+    for lo, h, iterations in warm:
+        run["state"], row = stage(lo, h, iterations)
+    held = first if row["frontier_balanced"] >= args.held else None
+    lo, step, attempts = first, move, 0
+    while held is not None and lo > 0 and step > 0 and attempts < max_stages:
+        attempts += 1
+        state, row = stage(max(lo - step, 0), task.horizon, per_stage)
+        ok = row["frontier_balanced"] >= args.held
+        row["kept"] = ok  # a failed stage is rolled back: its state is dropped, the next try moves half as far
+        if ok:
+            run["state"] = state
+        lo, step = next_frontier(lo, step, ok, move)
+        held = lo
+    if tail:
+        run["state"], _ = stage(None, task.horizon, tail)
+    rows, env_steps = run["rows"], run["env_steps"]
+    final = rows[-1]
+    out = {"task": args.task, "seed": args.seed, "controller": controller_path, "controller_return": expert_return,
+           "first": first, "last": args.last, "move": move, "per_stage": per_stage, "horizons": horizons,
+           "frontier_weight": args.frontier_weight, "tail": tail, "max_stages": max_stages, "held": args.held, "quick": args.quick,
+           "config": dataclasses.asdict(cfg), "held_back_to": held,
+           "final_hanging_return": final["hanging_return"], "final_hanging_balanced": final["hanging_balanced"],
+           "env_steps": env_steps, "stages": rows}
+    path = args.out or str(RESULTS / f"reverse_curriculum_{args.task}.json")
+    write_json(path, out)
+    print(f"the catch held back to frontier {held}; from hanging {final['hanging_return']:.0f} "
+          f"({final['hanging_balanced']}/16 balanced); wrote {path}")
+    return out
+
+
+if __name__ == "__main__":
+    main()
