@@ -12,8 +12,8 @@ the task's +-0.01 noise). One CE-APG run (the laptop protocol's settings) goes t
    500 steps (a flat 500-step horizon does not learn the hold, ``benchmarks/balance_horizon.py``);
 2. frontier stages: the frontier moves back by ``--move`` steps; a stage that ends with at least ``--held`` of 16
    episodes from the new frontier state balanced is kept (and the move grows back to ``--move``), one that does not
-   is rolled back (its training is dropped) and the next try moves half as far; it stops at the hanging start, when
-   the move halves to 0, or after ``--max-stages`` stages;
+   is rolled back (its training is dropped) and the next try moves half as far; until the first frontier holds,
+   stages train on there; it stops at the hanging start, when the move halves to 0, or after ``--max-stages`` stages;
 3. ``--tail`` iterations on the task's own hanging starts.
 
 Every stage runs ``--per-stage`` CE iterations on ``X[lo:lo+10]`` (the frontier) repeated ``--frontier-weight`` times
@@ -21,7 +21,7 @@ plus every state from the frontier to ``--last`` (so the catch learnt earlier ke
 is log-linear over the stages of a run without roll-backs (then ``lr_end``). After every stage the best candidate is
 evaluated (16 deterministic episodes each) from the frontier state ``X[lo]`` (+-0.01), from upright, and from the 16
 hanging starts of the paper tables. ``held_back_to`` is the last frontier kept. Writes
-``benchmarks/results/reverse_curriculum_<task>.json``.
+``benchmarks/results/reverse_curriculum_<task>.json`` and the final CE state to ``--checkpoint``.
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import os
 import pathlib
 import time
 
@@ -41,8 +42,8 @@ from benchmarks._cli import at_least
 from benchmarks._files import write_json
 from benchmarks.swingup_lqr import hanging, make_controller
 from lagrange.tasks import make_task
-from optim import ce_apg
-from optim.apg import evaluate
+from optim import ce_apg, checkpoint
+from optim.apg import config_to_dict, evaluate
 from optim.devices import cpu_core_count, use_cpu_cores
 
 RESULTS = pathlib.Path(__file__).resolve().parent / "results"
@@ -101,7 +102,10 @@ def main(argv=None):
     p.add_argument("--cpu-devices", type=int, default=None, help="default: every core")
     p.add_argument("--quick", action="store_true",
                    help="4 candidates of 2 APG steps, frontier 130, at most 2 moves, one iteration each: a smoke run")
-    p.add_argument("--out", default=None, help="result file (default benchmarks/results/reverse_curriculum_<task>.json)")
+    p.add_argument("--checkpoint", default=None, help="the final CE state (optim.ce_apg.load_checkpoint reads it; "
+                   "default runs/reverse_curriculum/ce_apg_<task>_<seed>.eqx)")
+    p.add_argument("--out", default=None,
+                   help="result file (default benchmarks/results/reverse_curriculum_<task>.json)")
     args = p.parse_args(argv)
     at_least(first=(args.first, 1), move=(args.move, 1), per_stage=(args.per_stage, 1), tail=(args.tail, 0),
              frontier_weight=(args.frontier_weight, 1), max_stages=(args.max_stages, 0), held=(args.held, 0))
@@ -155,7 +159,8 @@ def main(argv=None):
                "seconds": time.perf_counter() - t0}
         print(f"frontier {'hanging (task)' if lo is None else lo}, horizon {h}: iteration {row['iterations']}, "
               f"best training return {row['best_training_return']:.0f}; balanced from the frontier "
-              f"{row['frontier_balanced']}/16, upright {row['upright_balanced']}/16, hanging {row['hanging_balanced']}/16 "
+              f"{row['frontier_balanced']}/16, upright {row['upright_balanced']}/16, "
+              f"hanging {row['hanging_balanced']}/16 "
               f"(return {row['hanging_return']:.0f}); {row['seconds']:.0f} s", flush=True)
         run["rows"].append(row)
         return state, row
@@ -164,8 +169,13 @@ def main(argv=None):
         run["state"], row = stage(lo, h, iterations)
     held = first if row["frontier_balanced"] >= args.held else None
     lo, step, attempts = first, move, 0
-    while held is not None and lo > 0 and step > 0 and attempts < max_stages:
+    while lo > 0 and step > 0 and attempts < max_stages:
         attempts += 1
+        if held is None:  # the first frontier's hold not learnt yet: train on there (nothing to roll back to)
+            run["state"], row = stage(first, task.horizon, per_stage)
+            row["kept"] = True
+            held = first if row["frontier_balanced"] >= args.held else None
+            continue
         state, row = stage(max(lo - step, 0), task.horizon, per_stage)
         ok = row["frontier_balanced"] >= args.held
         row["kept"] = ok  # a failed stage is rolled back: its state is dropped, the next try moves half as far
@@ -176,14 +186,20 @@ def main(argv=None):
     if tail:
         run["state"], _ = stage(None, task.horizon, tail)
     rows, env_steps = run["rows"], run["env_steps"]
-    final = rows[-1]
+    final = [r for r in rows if r.get("kept", True)][-1]  # the evaluation of the final state (not a rolled-back one)
     out = {"task": args.task, "seed": args.seed, "controller": controller_path, "controller_return": expert_return,
            "first": first, "last": args.last, "move": move, "per_stage": per_stage, "horizons": horizons,
-           "frontier_weight": args.frontier_weight, "tail": tail, "max_stages": max_stages, "held": args.held, "quick": args.quick,
+           "frontier_weight": args.frontier_weight, "tail": tail, "max_stages": max_stages, "held": args.held,
+           "quick": args.quick,
            "config": dataclasses.asdict(cfg), "held_back_to": held,
            "final_hanging_return": final["hanging_return"], "final_hanging_balanced": final["hanging_balanced"],
            "env_steps": env_steps, "stages": rows}
     path = args.out or str(RESULTS / f"reverse_curriculum_{args.task}.json")
+    ckpt = args.checkpoint or os.path.join("runs", "reverse_curriculum", f"ce_apg_{args.task}_{args.seed}.eqx")
+    os.makedirs(os.path.dirname(os.path.abspath(ckpt)), exist_ok=True)
+    checkpoint.save(ckpt, run["state"], config=config_to_dict(cfg), seed=args.seed,
+                    iteration=int(run["state"].iteration))
+    out["checkpoint"] = ckpt
     write_json(path, out)
     print(f"the catch held back to frontier {held}; from hanging {final['hanging_return']:.0f} "
           f"({final['hanging_balanced']}/16 balanced); wrote {path}")

@@ -11,6 +11,7 @@ import pytest
 from benchmarks import reverse_curriculum as rc
 from benchmarks.swingup_lqr import RESULTS
 from lagrange import tasks
+from optim import ce_apg
 
 
 def test_warmup_grows_the_horizon_at_the_first_frontier():
@@ -50,7 +51,8 @@ def test_controller_states_replay_the_saved_controller():
 
 def test_quick_run_writes_every_stage(tmp_path):
     # --held 0 keeps every stage, so the frontier moves 130 -> 0 in one stage; then the tail on the task's starts
-    out = rc.main(["--quick", "--held", "0", "--cpu-devices", "1", "--out", str(tmp_path / "rc.json")])
+    out = rc.main(["--quick", "--held", "0", "--cpu-devices", "1", "--out", str(tmp_path / "rc.json"),
+                   "--checkpoint", str(tmp_path / "rc.eqx")])
     saved = json.loads((tmp_path / "rc.json").read_text())
     assert saved["stages"] == json.loads(json.dumps(out["stages"]))
     assert [r["frontier"] for r in saved["stages"]] == [130, 130, 0, None]
@@ -58,31 +60,38 @@ def test_quick_run_writes_every_stage(tmp_path):
     assert [r["iterations"] for r in saved["stages"]] == [1, 2, 3, 4]
     assert saved["stages"][2]["kept"] is True and saved["held_back_to"] == 0
     for r in saved["stages"]:
-        assert 0 <= r["frontier_balanced"] <= 16 and 0 <= r["hanging_balanced"] <= 16 and np.isfinite(r["hanging_return"])
+        assert 0 <= r["frontier_balanced"] <= 16 and 0 <= r["hanging_balanced"] <= 16
+        assert np.isfinite(r["hanging_return"])
     # 4 candidates x 2 APG steps x 1 episode x (100 + 3 x 500) steps
     assert saved["env_steps"] == 4 * 2 * 1 * (100 + 3 * 500)
     assert saved["final_hanging_return"] == saved["stages"][-1]["hanging_return"]
 
 
-def test_a_failed_stage_is_rolled_back_and_the_move_halved(tmp_path, monkeypatch):
-    """The stage logic with scripted evaluations: the warm-up holds, the move 130 -> 0 fails and is rolled back, the
-    half move to 65 holds; --quick stops after two frontier stages, then the tail."""
-    frontier_balanced = iter([16, 16, 0, 16, 5])  # per stage, in order; evaluate is called frontier first
+@pytest.mark.parametrize("script, frontiers, kept, iterations, held", [
+    # the warm-up holds; the move 130 -> 0 fails and is rolled back (the next stage starts again from iteration 2);
+    # the half move to 65 holds; --quick stops after two frontier stages, then the tail
+    ([16, 16, 0, 16, 5], [130, 130, 0, 65, None], [None, None, False, True, None], [1, 2, 3, 3, 4], 65),
+    # the warm-up does not hold: the next stage trains on at the first frontier and is kept; then 130 -> 0 fails
+    ([5, 5, 16, 0, 5], [130, 130, 130, 0, None], [None, None, True, False, None], [1, 2, 3, 4, 4], 130),
+])
+def test_stages_are_kept_or_rolled_back(tmp_path, monkeypatch, script, frontiers, kept, iterations, held):
+    """The stage logic with scripted evaluations (frontier episodes balanced per stage, in order)."""
+    frontier_balanced = iter(script)
     calls = {"n": 0}
 
-    def scripted(task, policy, norm, key, episodes):
+    def scripted(task, policy, norm, key, episodes):  # called frontier first, then hanging, then upright
         calls["n"] += 1
-        held = next(frontier_balanced) if calls["n"] % 3 == 1 else 0
-        return jnp.zeros(episodes), jnp.arange(episodes) < held
+        n = next(frontier_balanced) if calls["n"] % 3 == 1 else 0
+        return jnp.zeros(episodes), jnp.arange(episodes) < n
 
     monkeypatch.setattr(rc, "evaluate", scripted)
-    out = rc.main(["--quick", "--cpu-devices", "1", "--out", str(tmp_path / "rc.json")])
+    out = rc.main(["--quick", "--cpu-devices", "1", "--out", str(tmp_path / "rc.json"),
+                   "--checkpoint", str(tmp_path / "rc.eqx")])
     st = out["stages"]
-    assert [r["frontier"] for r in st] == [130, 130, 0, 65, None]
-    assert [r.get("kept") for r in st] == [None, None, False, True, None]
-    # the rolled-back stage's iteration is dropped: the next stage starts again from iteration 2
-    assert [r["iterations"] for r in st] == [1, 2, 3, 3, 4]
-    assert out["held_back_to"] == 65 and out["final_hanging_balanced"] == 0
+    assert [r["frontier"] for r in st] == frontiers and [r.get("kept") for r in st] == kept
+    assert [r["iterations"] for r in st] == iterations and out["held_back_to"] == held
+    trainer, state = ce_apg.load_checkpoint(tmp_path / "rc.eqx")  # the final state, after the tail
+    assert int(state.iteration) == iterations[-1] and trainer.config.num_candidates == 4
 
 
 @pytest.mark.parametrize("argv, flag", [(["--move", "0"], "--move"), (["--last", "100"], "--last"),
