@@ -10,10 +10,12 @@ the task's +-0.01 noise). One CE-APG run (the laptop protocol's settings) goes t
 
 1. warm-up at the frontier ``--first`` (near the end of the swing-up): the horizons ``--horizons``, then the task's
    500 steps (a flat 500-step horizon does not learn the hold, ``benchmarks/balance_horizon.py``);
-2. frontier stages: the frontier moves back by ``--move`` steps; a stage that ends with at least ``--held`` of 16
-   episodes from the new frontier state balanced is kept (and the move grows back to ``--move``), one that does not
-   is rolled back (its training is dropped) and the next try moves half as far; until the first frontier holds,
-   stages train on there; it stops at the hanging start, when the move halves to 0, or after ``--max-stages`` stages;
+2. frontier stages: the frontier moves back by ``--move`` steps. A stage after which at least ``--held`` of 16
+   episodes from the new frontier state balance moves the frontier there (and the move grows back to ``--move``);
+   one after which they do not, but still do from the old frontier, is kept and the next try moves half as far (at
+   least one step); one that lost both is rolled back (its training dropped) and the move halves. Until the first
+   frontier holds, stages train on there. It stops at the hanging start, when the move halves to 0, or after
+   ``--max-stages`` stages;
 3. ``--tail`` iterations on the task's own hanging starts.
 
 Every stage runs ``--per-stage`` CE iterations on ``X[lo:lo+10]`` (the frontier) repeated ``--frontier-weight`` times
@@ -68,12 +70,31 @@ def warmup(first: int, horizons: list[int], per_stage: int, horizon: int):
     return [(first, h, per_stage) for h in horizons if h < horizon] + [(first, horizon, per_stage)]
 
 
-def next_frontier(lo: int, move: int, held: bool, full_move: int) -> tuple[int, int]:
-    """``(frontier, move)`` after a stage tried ``lo - move``: on success the frontier moves there and the move grows
-    back (doubling, at most ``full_move``); on failure the frontier stays and the move halves (0: give up)."""
-    if held:
-        return max(lo - move, 0), min(2 * move, full_move)
-    return lo, move // 2
+def next_frontier(lo: int, move: int, held_new: bool, held_old: bool, full_move: int) -> tuple[int, int, bool]:
+    """``(frontier, move, keep the stage's training)`` after a stage tried the frontier ``lo - move``. It held there:
+    the frontier moves and the move grows back (doubling, at most ``full_move``). It did not, but still holds from the
+    old frontier: the training is kept (it lost nothing) and the next try moves half as far, at least 1 step. It
+    holds from neither: the stage is rolled back and the move halves (0: the curriculum stops)."""
+    if held_new:
+        return max(lo - move, 0), min(2 * move, full_move), True
+    if held_old:
+        return lo, max(move // 2, 1), True
+    return lo, move // 2, False
+
+
+def evaluate_stage(task, X, frontier: int | None, previous: int | None, policy, norm, key) -> dict:
+    """Balanced counts and mean returns of 16 deterministic episodes from the frontier state ``X[frontier]`` (+-0.01;
+    hanging for None), from ``X[previous]`` when given, from the task's own (hanging) starts and from upright."""
+    ev = eqx.filter_jit(lambda t, k: evaluate(t, policy, norm, k, EVAL_EPISODES))
+    places = {"frontier": X[(frontier or 0):(frontier or 0) + 1], "hanging": None, "upright": None}
+    if previous is not None:
+        places["previous_frontier"] = X[previous:previous + 1]
+    out = {}
+    for name, starts in places.items():
+        t = dataclasses.replace(task, upright=1.0) if name == "upright" else dataclasses.replace(task, starts=starts)
+        ret, bal = ev(t, key)
+        out[f"{name}_return"], out[f"{name}_balanced"] = float(jnp.mean(ret)), int(jnp.sum(bal))
+    return out
 
 
 def stage_starts(X, lo: int, last: int, frontier_weight: int):
@@ -129,7 +150,6 @@ def main(argv=None):
     warm = warmup(first, horizons, per_stage, task.horizon)
     planned = len(warm) * per_stage + -(-first // move) * per_stage + tail  # the learning-rate schedule's length
     cfg = ce_apg.CEAPGConfig.laptop(args.task, iterations=planned, **overrides)
-    upright = dataclasses.replace(task, upright=1.0)
     eval_key = jax.random.PRNGKey(10_000 + args.seed)  # the paper tables' evaluation starts
     print(f"{args.task}: controller return {expert_return:.1f}; the learning rate decays over {planned} iterations",
           flush=True)
@@ -137,8 +157,9 @@ def main(argv=None):
     t0 = time.perf_counter()
     run = {"state": None, "env_steps": 0, "rows": []}
 
-    def stage(lo, h, iterations):
-        """Train ``iterations`` CE iterations from frontier ``lo`` (None: the task's own starts), evaluate, record."""
+    def stage(lo, h, iterations, previous=None):
+        """Train ``iterations`` CE iterations from frontier ``lo`` (None: the task's own starts), evaluate (also from
+        the frontier ``previous``, when given), record."""
         train_task = task if lo is None else dataclasses.replace(
             task, starts=stage_starts(X, lo, args.last, args.frontier_weight))
         stage_cfg = dataclasses.replace(cfg, horizon=h)
@@ -148,15 +169,9 @@ def main(argv=None):
             state, metrics = trainer.update(state)
         run["env_steps"] += iterations * stage_cfg.env_steps_per_iteration()
         policy, norm = trainer.policy(state)
-        ev = eqx.filter_jit(lambda t, k: evaluate(t, policy, norm, k, EVAL_EPISODES))
-        front = dataclasses.replace(task, starts=X[(lo or 0):(lo or 0) + 1])
-        (fr, fb), (hr, hb), (ur, ub) = (ev(t, eval_key) for t in (front, task, upright))
         row = {"frontier": lo, "training_horizon": h, "iterations": int(state.iteration),
                "env_steps": run["env_steps"], "best_training_return": float(metrics["best_return"]),
-               "frontier_return": float(jnp.mean(fr)), "frontier_balanced": int(jnp.sum(fb)),
-               "hanging_return": float(jnp.mean(hr)), "hanging_balanced": int(jnp.sum(hb)),
-               "upright_return": float(jnp.mean(ur)), "upright_balanced": int(jnp.sum(ub)),
-               "seconds": time.perf_counter() - t0}
+               **evaluate_stage(task, X, lo, previous, policy, norm, eval_key), "seconds": time.perf_counter() - t0}
         print(f"frontier {'hanging (task)' if lo is None else lo}, horizon {h}: iteration {row['iterations']}, "
               f"best training return {row['best_training_return']:.0f}; balanced from the frontier "
               f"{row['frontier_balanced']}/16, upright {row['upright_balanced']}/16, "
@@ -176,12 +191,12 @@ def main(argv=None):
             row["kept"] = True
             held = first if row["frontier_balanced"] >= args.held else None
             continue
-        state, row = stage(max(lo - step, 0), task.horizon, per_stage)
-        ok = row["frontier_balanced"] >= args.held
-        row["kept"] = ok  # a failed stage is rolled back: its state is dropped, the next try moves half as far
-        if ok:
+        state, row = stage(max(lo - step, 0), task.horizon, per_stage, previous=lo)
+        lo, step, keep = next_frontier(lo, step, row["frontier_balanced"] >= args.held,
+                                       row["previous_frontier_balanced"] >= args.held, move)
+        row["kept"] = keep  # a stage that lost the hold everywhere is rolled back: its training is dropped
+        if keep:
             run["state"] = state
-        lo, step = next_frontier(lo, step, ok, move)
         held = lo
     if tail:
         run["state"], _ = stage(None, task.horizon, tail)

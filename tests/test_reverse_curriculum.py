@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -20,12 +21,16 @@ def test_warmup_grows_the_horizon_at_the_first_frontier():
 
 
 def test_a_held_stage_moves_on_a_failed_one_halves_the_move():
-    assert rc.next_frontier(100, 5, True, 5) == (95, 5)
-    assert rc.next_frontier(100, 5, False, 5) == (100, 2)
-    assert rc.next_frontier(100, 2, True, 5) == (98, 4)  # grows back after a success, at most the full move
-    assert rc.next_frontier(98, 4, True, 5) == (94, 5)
-    assert rc.next_frontier(3, 5, True, 5) == (0, 5)  # never past the hanging start
-    assert rc.next_frontier(50, 1, False, 5) == (50, 0)  # nothing left to halve: the curriculum stops
+    assert rc.next_frontier(100, 5, True, True, 5) == (95, 5, True)
+    assert rc.next_frontier(100, 2, True, False, 5) == (98, 4, True)  # grows back after a success, at most the full
+    assert rc.next_frontier(98, 4, True, True, 5) == (94, 5, True)
+    assert rc.next_frontier(3, 5, True, True, 5) == (0, 5, True)  # never past the hanging start
+    # not held at the new frontier but still at the old one: kept, half the move (at least 1)
+    assert rc.next_frontier(100, 5, False, True, 5) == (100, 2, True)
+    assert rc.next_frontier(100, 1, False, True, 5) == (100, 1, True)
+    # held nowhere: rolled back, half the move; nothing left to halve: the curriculum stops
+    assert rc.next_frontier(100, 5, False, False, 5) == (100, 2, False)
+    assert rc.next_frontier(50, 1, False, False, 5) == (50, 0, False)
 
 
 def test_stage_starts_weight_the_frontier():
@@ -68,23 +73,30 @@ def test_quick_run_writes_every_stage(tmp_path):
 
 
 @pytest.mark.parametrize("script, frontiers, kept, iterations, held", [
-    # the warm-up holds; the move 130 -> 0 fails and is rolled back (the next stage starts again from iteration 2);
-    # the half move to 65 holds; --quick stops after two frontier stages, then the tail
-    ([16, 16, 0, 16, 5], [130, 130, 0, 65, None], [None, None, False, True, None], [1, 2, 3, 3, 4], 65),
+    # (balanced from the new frontier, from the previous one) per stage, in order. The warm-up holds; the move
+    # 130 -> 0 loses the hold everywhere and is rolled back (the next stage starts again from iteration 2); the half
+    # move to 65 holds; --quick stops after two frontier stages, then the tail
+    ([16, 16, (0, 0), (16, 16), 5], [130, 130, 0, 65, None], [None, None, False, True, None], [1, 2, 3, 3, 4], 65),
+    # the move 130 -> 0 fails there but still holds at 130: kept, and the next try (65) starts from iteration 3
+    ([16, 16, (0, 16), (16, 16), 5], [130, 130, 0, 65, None], [None, None, True, True, None], [1, 2, 3, 4, 5], 65),
     # the warm-up does not hold: the next stage trains on at the first frontier and is kept; then 130 -> 0 fails
-    ([5, 5, 16, 0, 5], [130, 130, 130, 0, None], [None, None, True, False, None], [1, 2, 3, 4, 4], 130),
+    ([5, 5, 16, (0, 0), 5], [130, 130, 130, 0, None], [None, None, True, False, None], [1, 2, 3, 4, 4], 130),
 ])
 def test_stages_are_kept_or_rolled_back(tmp_path, monkeypatch, script, frontiers, kept, iterations, held):
-    """The stage logic with scripted evaluations (frontier episodes balanced per stage, in order)."""
-    frontier_balanced = iter(script)
-    calls = {"n": 0}
+    """The stage logic with scripted evaluations."""
+    results = iter(script)
 
-    def scripted(task, policy, norm, key, episodes):  # called frontier first, then hanging, then upright
-        calls["n"] += 1
-        n = next(frontier_balanced) if calls["n"] % 3 == 1 else 0
-        return jnp.zeros(episodes), jnp.arange(episodes) < n
+    def scripted(task, X, frontier, previous, policy, norm, key):
+        r = next(results)
+        new, old = r if isinstance(r, tuple) else (r, None)
+        assert (previous is None) == (old is None)  # the old frontier is evaluated on frontier stages only
+        out = {f"{k}_{v}": 0 for k in ("frontier", "hanging", "upright") for v in ("return", "balanced")}
+        out["frontier_balanced"] = new
+        if previous is not None:
+            out["previous_frontier_balanced"] = old
+        return out
 
-    monkeypatch.setattr(rc, "evaluate", scripted)
+    monkeypatch.setattr(rc, "evaluate_stage", scripted)
     out = rc.main(["--quick", "--cpu-devices", "1", "--out", str(tmp_path / "rc.json"),
                    "--checkpoint", str(tmp_path / "rc.eqx")])
     st = out["stages"]
@@ -92,6 +104,23 @@ def test_stages_are_kept_or_rolled_back(tmp_path, monkeypatch, script, frontiers
     assert [r["iterations"] for r in st] == iterations and out["held_back_to"] == held
     trainer, state = ce_apg.load_checkpoint(tmp_path / "rc.eqx")  # the final state, after the tail
     assert int(state.iteration) == iterations[-1] and trainer.config.num_candidates == 4
+
+
+def test_stage_evaluation_counts_balanced_episodes_from_each_place():
+    """On the all-zero CE mean (no force at all) the counts and the hanging return are known: it balances from
+    nowhere, and from hanging the chain stays down."""
+    task = tasks.double_cartpole()
+    d = json.loads((RESULTS / "swingup_lqr_double_cartpole.json").read_text())
+    X, _ = rc.controller_states(task, d)
+    cfg = ce_apg.CEAPGConfig.laptop("double_cartpole")
+    trainer = ce_apg.make_trainer(cfg)
+    policy, norm = trainer.policy(trainer.init(jax.random.PRNGKey(0)), "mean")
+    r = rc.evaluate_stage(task, X, 120, 125, policy, norm, jax.random.PRNGKey(1))
+    assert set(r) == {f"{k}_{v}" for k in ("frontier", "previous_frontier", "hanging", "upright")
+                      for v in ("return", "balanced")}
+    assert r["hanging_balanced"] == 0 and r["upright_balanced"] == 0 and r["frontier_balanced"] == 0
+    # the all-zero policy pushes nothing: from hanging (+-0.01) the chain stays near hanging, 10 - pi^2 per step
+    assert r["hanging_return"] == pytest.approx(500 * (10 - np.pi**2), abs=10.0)
 
 
 @pytest.mark.parametrize("argv, flag", [(["--move", "0"], "--move"), (["--last", "100"], "--last"),
