@@ -83,7 +83,7 @@ def test_quick_run_writes_every_stage(tmp_path):
     ([5, 5, 16, (0, 0), 5], [130, 130, 130, 0, None], [None, None, True, False, None], [1, 2, 3, 4, 4], 130),
 ])
 def test_stages_are_kept_or_rolled_back(tmp_path, monkeypatch, script, frontiers, kept, iterations, held):
-    """The stage logic with scripted evaluations."""
+    """The stage logic with scripted evaluations and a trainer that only counts iterations."""
     results = iter(script)
 
     def scripted(task, X, frontier, previous, policy, norm, key):
@@ -96,7 +96,14 @@ def test_stages_are_kept_or_rolled_back(tmp_path, monkeypatch, script, frontiers
             out["previous_frontier_balanced"] = old
         return out
 
+    real = rc.ce_apg.make_trainer
+
+    def untrained(config, task):  # the real trainer, but an iteration only counts (no compile, no training)
+        trainer = real(config, task)
+        return trainer._replace(update=lambda st: (st._replace(iteration=st.iteration + 1), {"best_return": 0.0}))
+
     monkeypatch.setattr(rc, "evaluate_stage", scripted)
+    monkeypatch.setattr(rc.ce_apg, "make_trainer", untrained)
     out = rc.main(["--quick", "--cpu-devices", "1", "--out", str(tmp_path / "rc.json"),
                    "--checkpoint", str(tmp_path / "rc.eqx")])
     st = out["stages"]
