@@ -13,9 +13,10 @@ the task's +-0.01 noise). One CE-APG run (the laptop protocol's settings) goes t
 2. frontier stages: the frontier moves back by ``--move`` steps. A stage after which at least ``--held`` of 16
    episodes from the new frontier state balance moves the frontier there (and the move grows back to ``--move``);
    one after which they do not, but still do from the old frontier, is kept and the next try moves half as far (at
-   least one step); one that lost both is rolled back (its training dropped) and the move halves. Until the first
-   frontier holds, stages train on there. It stops at the hanging start, when the move halves to 0, or after
-   ``--max-stages`` stages;
+   least one step); one that lost both is rolled back (its training dropped; the retry draws new candidates) and the
+   move halves; when it halves to 0 the next stage trains at the frontier itself (kept if that still holds) and moves
+   of 1 are tried again. Until the first frontier holds, stages train on there. It stops at the hanging start or
+   after ``--max-stages`` stages. The results file and the kept CE state are rewritten after every stage;
 3. optionally ``--tail`` iterations on the task's own hanging starts (none by default: 20 of them lost the hold
    everywhere, upright included, in both runs that had them).
 
@@ -75,7 +76,8 @@ def next_frontier(lo: int, move: int, held_new: bool, held_old: bool, full_move:
     """``(frontier, move, keep the stage's training)`` after a stage tried the frontier ``lo - move``. It held there:
     the frontier moves and the move grows back (doubling, at most ``full_move``). It did not, but still holds from the
     old frontier: the training is kept (it lost nothing) and the next try moves half as far, at least 1 step. It
-    holds from neither: the stage is rolled back and the move halves (0: the curriculum stops)."""
+    holds from neither: the stage is rolled back and the move halves (0: the next stage trains at the frontier itself,
+    then moves of 1 are tried again)."""
     if held_new:
         return max(lo - move, 0), min(2 * move, full_move), True
     if held_old:
@@ -184,44 +186,56 @@ def main(argv=None):
         run["rows"].append(row)
         return state, row
 
+    path = args.out or str(RESULTS / f"reverse_curriculum_{args.task}.json")
+    ckpt = args.checkpoint or os.path.join("runs", "reverse_curriculum", f"ce_apg_{args.task}_{args.seed}.eqx")
+    os.makedirs(os.path.dirname(os.path.abspath(ckpt)), exist_ok=True)
+
+    def save(held, finished: bool) -> dict:
+        """The results so far and the kept CE state, both written atomically after every stage."""
+        rows = run["rows"]
+        final = [r for r in rows if r.get("kept", True)][-1]  # the evaluation of the kept state
+        out = {"task": args.task, "seed": args.seed, "controller": controller_path, "controller_return": expert_return,
+               "first": first, "last": args.last, "move": move, "per_stage": per_stage, "horizons": horizons,
+               "frontier_weight": args.frontier_weight, "tail": tail, "max_stages": max_stages, "held": args.held,
+               "quick": args.quick, "config": dataclasses.asdict(cfg), "finished": finished, "held_back_to": held,
+               "final_hanging_return": final["hanging_return"], "final_hanging_balanced": final["hanging_balanced"],
+               "env_steps": run["env_steps"], "checkpoint": ckpt, "stages": rows}
+        checkpoint.save(ckpt, run["state"], config=config_to_dict(cfg), seed=args.seed,
+                        iteration=int(run["state"].iteration))
+        write_json(path, out)
+        return out
+
     for lo, h, iterations in warm:
         run["state"], row = stage(lo, h, iterations)
+        save(None, False)
     held = first if row["frontier_balanced"] >= args.held else None
     lo, step, attempts = first, move, 0
-    while lo > 0 and step > 0 and attempts < max_stages:
+    while lo > 0 and attempts < max_stages:
         attempts += 1
         if held is None:  # the first frontier's hold not learnt yet: train on there (nothing to roll back to)
             run["state"], row = stage(first, task.horizon, per_stage)
             row["kept"] = True
             held = first if row["frontier_balanced"] >= args.held else None
-            continue
-        state, row = stage(max(lo - step, 0), task.horizon, per_stage, previous=lo)
-        lo, step, keep = next_frontier(lo, step, row["frontier_balanced"] >= args.held,
-                                       row["previous_frontier_balanced"] >= args.held, move)
-        row["kept"] = keep  # a stage that lost the hold everywhere is rolled back: its training is dropped
-        if keep:
-            run["state"] = state
-        held = lo
+        else:
+            if step == 0:  # consolidate at the frontier (kept if it still holds there), then try a move of 1 again
+                state, row = stage(lo, task.horizon, per_stage)
+                keep, step = row["frontier_balanced"] >= args.held, 1
+            else:
+                state, row = stage(max(lo - step, 0), task.horizon, per_stage, previous=lo)
+                lo, step, keep = next_frontier(lo, step, row["frontier_balanced"] >= args.held,
+                                               row["previous_frontier_balanced"] >= args.held, move)
+                held = lo
+            row["kept"] = keep
+            if keep:
+                run["state"] = state
+            else:  # rolled back; the retry draws new candidates (the CE key folded with the attempt number)
+                run["state"] = run["state"]._replace(key=jax.random.fold_in(run["state"].key, attempts))
+        save(held, False)
     if tail:
         run["state"], _ = stage(None, task.horizon, tail)
-    rows, env_steps = run["rows"], run["env_steps"]
-    final = [r for r in rows if r.get("kept", True)][-1]  # the evaluation of the final state (not a rolled-back one)
-    out = {"task": args.task, "seed": args.seed, "controller": controller_path, "controller_return": expert_return,
-           "first": first, "last": args.last, "move": move, "per_stage": per_stage, "horizons": horizons,
-           "frontier_weight": args.frontier_weight, "tail": tail, "max_stages": max_stages, "held": args.held,
-           "quick": args.quick,
-           "config": dataclasses.asdict(cfg), "held_back_to": held,
-           "final_hanging_return": final["hanging_return"], "final_hanging_balanced": final["hanging_balanced"],
-           "env_steps": env_steps, "stages": rows}
-    path = args.out or str(RESULTS / f"reverse_curriculum_{args.task}.json")
-    ckpt = args.checkpoint or os.path.join("runs", "reverse_curriculum", f"ce_apg_{args.task}_{args.seed}.eqx")
-    os.makedirs(os.path.dirname(os.path.abspath(ckpt)), exist_ok=True)
-    checkpoint.save(ckpt, run["state"], config=config_to_dict(cfg), seed=args.seed,
-                    iteration=int(run["state"].iteration))
-    out["checkpoint"] = ckpt
-    write_json(path, out)
-    print(f"the catch held back to frontier {held}; from hanging {final['hanging_return']:.0f} "
-          f"({final['hanging_balanced']}/16 balanced); wrote {path}")
+    out = save(held, True)
+    print(f"the catch held back to frontier {held}; from hanging {out['final_hanging_return']:.0f} "
+          f"({out['final_hanging_balanced']}/16 balanced); wrote {path} and {ckpt}")
     return out
 
 

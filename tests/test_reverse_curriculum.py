@@ -83,6 +83,20 @@ def test_quick_run_writes_every_stage(tmp_path):
     ([5, 5, 16, (0, 0), 5], [130, 130, 130, 0, None], [None, None, True, False, None], [1, 2, 3, 4, 4], 130),
 ])
 def test_stages_are_kept_or_rolled_back(tmp_path, monkeypatch, script, frontiers, kept, iterations, held):
+    _scripted_run(tmp_path, monkeypatch, script, frontiers, kept, iterations, held, ["--quick"])
+
+
+def test_a_move_halved_to_nothing_consolidates_at_the_frontier(tmp_path, monkeypatch):
+    # --move 2: 130 -> 128 and 130 -> 129 lose the hold everywhere (rolled back); the move is 0, so the next stage
+    # trains at 130 itself (kept: it holds there); then 130 -> 129 holds
+    script = [16, 16, (0, 0), (0, 0), 16, (16, 16), 5]
+    _scripted_run(tmp_path, monkeypatch, script, [130, 130, 128, 129, 130, 129, None],
+                  [None, None, False, False, True, True, None], [1, 2, 3, 3, 3, 4, 5], 129,
+                  ["--first", "130", "--move", "2", "--per-stage", "1", "--horizons", "100", "--max-stages", "4",
+                   "--tail", "1"])
+
+
+def _scripted_run(tmp_path, monkeypatch, script, frontiers, kept, iterations, held, argv):
     """The stage logic with scripted evaluations and a trainer that only counts iterations."""
     results = iter(script)
 
@@ -104,13 +118,14 @@ def test_stages_are_kept_or_rolled_back(tmp_path, monkeypatch, script, frontiers
 
     monkeypatch.setattr(rc, "evaluate_stage", scripted)
     monkeypatch.setattr(rc.ce_apg, "make_trainer", untrained)
-    out = rc.main(["--quick", "--cpu-devices", "1", "--out", str(tmp_path / "rc.json"),
-                   "--checkpoint", str(tmp_path / "rc.eqx")])
+    out = rc.main(["--cpu-devices", "1", "--out", str(tmp_path / "rc.json"), "--checkpoint", str(tmp_path / "rc.eqx"),
+                   *argv])
     st = out["stages"]
     assert [r["frontier"] for r in st] == frontiers and [r.get("kept") for r in st] == kept
     assert [r["iterations"] for r in st] == iterations and out["held_back_to"] == held
     trainer, state = ce_apg.load_checkpoint(tmp_path / "rc.eqx")  # the final state, after the tail
-    assert int(state.iteration) == iterations[-1] and trainer.config.num_candidates == 4
+    assert int(state.iteration) == iterations[-1] and trainer.config.task == "double_cartpole"
+    assert out["finished"] and json.loads((tmp_path / "rc.json").read_text())["stages"] == json.loads(json.dumps(st))
 
 
 def test_stage_evaluation_counts_balanced_episodes_from_each_place():
