@@ -65,7 +65,9 @@ def check_common(cfg) -> None:
 def log_linear_lr(iteration, iterations: int, lr_start: float, lr_end: float):
     """The CE-APG authors' schedule: ``lr_start^((T - i) / T) * lr_end^(i / T)`` at iteration ``i`` of ``T``; ``lr_end``
     from ``i = T`` on (a run continued past its planned iterations)."""
-    frac = jnp.minimum(jnp.asarray(iteration, jnp.float32) / iterations, 1.0)
+    # clamped as an integer, so the float arithmetic below is the same program as before the clamp existed: the
+    # chaotic swing-up training turns a one-ulp change of the learning rate into a different run
+    frac = jnp.asarray(jnp.minimum(iteration, iterations), jnp.float32) / iterations
     return jnp.exp((1 - frac) * np.log(lr_start) + frac * np.log(lr_end))
 
 
