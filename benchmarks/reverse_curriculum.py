@@ -40,11 +40,10 @@ import time
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 from benchmarks._cli import at_least
 from benchmarks._files import write_json
-from benchmarks.swingup_lqr import hanging, make_controller
+from benchmarks.swingup_lqr import replay, results_path
 from lagrange.tasks import make_task
 from optim import ce_apg, checkpoint
 from optim.apg import config_to_dict, evaluate
@@ -60,9 +59,7 @@ def controller_states(task, controller: dict):
     best = controller.get("best")
     if not best:
         raise SystemExit("the swingup_lqr result file holds no balanced controller ('best' is empty)")
-    s0 = hanging(task)
-    episode = jax.jit(make_controller(task, np.asarray(controller["lqr_gain"]), best["T"]))
-    ret, states, _, _ = episode(jnp.asarray(best["offsets"], s0.q.dtype), s0)
+    ret, states, _, _ = replay(task, controller["lqr_gain"], best)
     return jnp.concatenate([states.q, states.qd], axis=1), float(ret)
 
 
@@ -144,7 +141,7 @@ def main(argv=None):
     task = make_task(args.task)
     if args.last > task.horizon:
         raise SystemExit(f"--last must be <= the task's horizon {task.horizon}, got {args.last}")
-    controller_path = args.controller or str(RESULTS / f"swingup_lqr_{args.task}.json")
+    controller_path = results_path(args.task, args.controller)
     with open(controller_path) as f:
         X, expert_return = controller_states(task, json.load(f))
     first, move, per_stage, horizons, tail, max_stages = (args.first, args.move, args.per_stage, args.horizons,
@@ -205,25 +202,27 @@ def main(argv=None):
         write_json(path, out)
         return out
 
+    def holds(row, where="frontier") -> bool:
+        return row[f"{where}_balanced"] >= args.held
+
     for lo, h, iterations in warm:
         run["state"], row = stage(lo, h, iterations)
         save(None, False)
-    held = first if row["frontier_balanced"] >= args.held else None
+    held = first if holds(row) else None
     lo, step, attempts = first, move, 0
     while lo > 0 and attempts < max_stages:
         attempts += 1
         if held is None:  # the first frontier's hold not learnt yet: train on there (nothing to roll back to)
             run["state"], row = stage(first, task.horizon, per_stage)
             row["kept"] = True
-            held = first if row["frontier_balanced"] >= args.held else None
+            held = first if holds(row) else None
         else:
             if step == 0:  # consolidate at the frontier (kept if it still holds there), then try a move of 1 again
                 state, row = stage(lo, task.horizon, per_stage)
-                keep, step = row["frontier_balanced"] >= args.held, 1
+                keep, step = holds(row), 1
             else:
                 state, row = stage(max(lo - step, 0), task.horizon, per_stage, previous=lo)
-                lo, step, keep = next_frontier(lo, step, row["frontier_balanced"] >= args.held,
-                                               row["previous_frontier_balanced"] >= args.held, move)
+                lo, step, keep = next_frontier(lo, step, holds(row), holds(row, "previous_frontier"), move)
                 held = lo
             row["kept"] = keep
             if keep:

@@ -78,6 +78,19 @@ def make_controller(task, K, T: int):
     return episode
 
 
+def results_path(task_name: str, out: str | None = None) -> str:
+    """``out``, or the default result file of ``task_name``: ``benchmarks/results/swingup_lqr_<task>.json``."""
+    return out or str(RESULTS / f"swingup_lqr_{task_name}.json")
+
+
+def replay(task, K, row: dict):
+    """The noise-free episode from hanging of a saved controller (``row``: a result's ``best``, with ``T`` and
+    ``offsets``; ``K`` the result's ``lqr_gain``): ``(return, states, actions, rewards)`` as :func:`make_controller`."""
+    s0 = hanging(task)
+    episode = jax.jit(make_controller(task, np.asarray(K), row["T"]))
+    return episode(jnp.asarray(row["offsets"], s0.q.dtype), s0)
+
+
 def hanging(task) -> TaskState:
     """The noise-free hanging start, at rest, in the task's float type."""
     zeros = jnp.zeros(task.chain.n, jnp.result_type(task.chain.mass))
@@ -214,7 +227,7 @@ def main(argv=None):
            "lqr_r": args.r, "lqr_gain": np.asarray(K).tolist(),
            "best_balanced_return": best["return"] if best else None,
            "best": best, "rows": [{k: v for k, v in r.items() if k not in ("offsets", "actions")} for r in rows]}
-    path = args.out or str(RESULTS / f"swingup_lqr_{args.task}.json")
+    path = results_path(args.task, args.out)
     write_json(path, out)
     if args.plot and best:
         plot(task, K, best, args.plot)
@@ -227,7 +240,7 @@ def replot(args) -> dict:
     """``--replot``: draw the best controller saved in a result file, with the gain saved beside it."""
     if not args.plot:
         raise SystemExit("--replot needs --plot PATH")
-    path = args.out or str(RESULTS / f"swingup_lqr_{args.task}.json")
+    path = results_path(args.task, args.out)
     with open(path) as f:
         out = json.load(f)
     if out.get("task") != args.task or not out.get("best"):
@@ -242,9 +255,7 @@ def plot(task, K, row: dict, path: str) -> None:
     noise-free episode, with the step where LQR takes over marked."""
     from lagrange.plotting import episode_figure
 
-    s0 = hanging(task)
-    episode = jax.jit(make_controller(task, K, row["T"]))
-    ret, states, actions, _ = episode(jnp.asarray(row["offsets"], s0.q.dtype), s0)
+    ret, states, actions, _ = replay(task, K, row)
     title = f"{task.kind}: open-loop swing-up ({row['T'] * task.dt:.2f} s) + LQR, return {float(ret):.0f}"
     episode_figure(task, states.q, actions, path, qd=states.qd, title=title,
                    marks=[(row["T"] * task.dt, "LQR takes over")])
