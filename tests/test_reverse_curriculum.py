@@ -28,7 +28,7 @@ def test_a_held_stage_moves_on_a_failed_one_halves_the_move():
     # not held at the new frontier but still at the old one: kept, half the move (at least 1)
     assert rc.next_frontier(100, 5, False, True, 5) == (100, 2, True)
     assert rc.next_frontier(100, 1, False, True, 5) == (100, 1, True)
-    # held nowhere: rolled back, half the move; nothing left to halve: the curriculum stops
+    # held nowhere: rolled back, half the move; halved to 0, the next stage trains at the frontier itself
     assert rc.next_frontier(100, 5, False, False, 5) == (100, 2, False)
     assert rc.next_frontier(50, 1, False, False, 5) == (50, 0, False)
 
