@@ -34,7 +34,8 @@ comes first.
 Physical parameters (paper-facts; unstated ones chosen and documented in :mod:`lagrange.systems`):
 acrobot two links 1 m, 2.5 kg; cartpole cart 10.47 kg, pole 5.02 kg, 1 m; double cartpole cart
 10.47 kg, poles 5.02 kg, 1 m each; thin-rod inertias ``m l^2 / 12``. Control intervals: 0.01 s,
-0.04 s, 0.01 s.
+0.04 s, 0.01 s. ``make_task(name, bodies="brax_v1")`` puts the same task on the bodies the authors' Brax v1
+configs describe (shorter hinge spacings, every inertia 1 kg m^2; ``lagrange.systems.BRAX_V1``).
 
 Integrator. Each control interval is one classic RK4 step (``lg.RK4()``, ``substeps=1``); the
 authors' Brax substep counts (4, 8, 12) were needed by a stiff spring-joint engine, not by exact
@@ -72,7 +73,7 @@ from lagrange.chain import Chain
 from lagrange.integrate import step as _step
 from lagrange.solvers import RK4
 
-__all__ = ["TaskState", "Task", "control_step", "acrobot", "cartpole", "double_cartpole", "make_task", "TASKS",
+__all__ = ["TaskState", "Task", "control_step", "acrobot", "cartpole", "double_cartpole", "make_task", "TASKS", "BODIES",
            "balanced", "upright_error", "wrap", "chain_swingup"]
 
 
@@ -249,11 +250,17 @@ def chain_swingup(chain: Chain, *, dt: float = 0.01, horizon: int = 500, substep
 TASKS = {"acrobot": acrobot, "cartpole": cartpole, "double_cartpole": double_cartpole}
 
 
-def make_task(name: str) -> Task:
-    """The paper task called ``name`` (one of ``TASKS``)."""
+BODIES = ("rods", "brax_v1")
+
+
+def make_task(name: str, bodies: str = "rods") -> Task:
+    """The paper task called ``name`` (one of ``TASKS``) on ``bodies``: "rods", this library's (the lengths of
+    paper-facts, thin-rod inertias), or "brax_v1", the authors' Brax v1 bodies (``lagrange.systems.BRAX_V1``)."""
     if name not in TASKS:
         raise ValueError(f"task must be one of {sorted(TASKS)}, got {name!r}")
-    return TASKS[name]()
+    if bodies not in BODIES:
+        raise ValueError(f"bodies must be one of {list(BODIES)}, got {bodies!r}")
+    return TASKS[name]() if bodies == "rods" else TASKS[name](**systems.BRAX_V1[name])
 
 
 def balanced(task: Task, q, *, fraction: float = 0.2, tolerance: float = 0.2):

@@ -19,7 +19,7 @@ import numpy as np
 import optax
 from jax.flatten_util import ravel_pytree
 
-from lagrange.tasks import TASKS, Task, make_task
+from lagrange.tasks import BODIES, TASKS, Task, make_task
 from policies import GRUPolicy, MLPPolicy, Normalizer
 
 
@@ -55,6 +55,8 @@ def check_common(cfg) -> None:
                          f"make_trainer), got {cfg.task!r}")
     if cfg.policy not in ("gru", "mlp"):
         raise ValueError(f"{cls}.policy must be 'gru' or 'mlp', got {cfg.policy!r}")
+    if cfg.bodies not in BODIES:
+        raise ValueError(f"{cls}.bodies must be one of {list(BODIES)}, got {cfg.bodies!r}")
     _check_int(cls, "width", cfg.width, 1)
     _check_int(cls, "horizon", cfg.horizon, 1)
     _check_int(cls, "episodes", cfg.episodes, 1)
@@ -91,6 +93,7 @@ class InnerAPGConfig:
     normalize: bool = True
     truncation: int | None = None
     trig_observation: bool = False
+    bodies: str = "rods"
 
     min_apg_steps: ClassVar[int] = 1  # CE-APG allows 0: the plain cross-entropy method
 
@@ -119,7 +122,10 @@ def build_task(cfg, task: Task | None = None) -> Task:
     if task is None:
         if cfg.task == "custom":
             raise ValueError(f"{type(cfg).__name__}.task is 'custom': pass the Task to make_trainer(config, task)")
-        task = make_task(cfg.task)
+        task = make_task(cfg.task, cfg.bodies)
+    elif cfg.bodies != "rods":
+        raise ValueError(f"{type(cfg).__name__}.bodies={cfg.bodies!r} names the bodies of a paper task; a task passed to "
+                         f"make_trainer brings its own chain (leave bodies='rods')")
     if getattr(cfg, "trig_observation", False) and not task.trig:  # a given task too, not silently ignored
         task = dataclasses.replace(task, trig=True)
     if cfg.horizon != task.horizon:
@@ -257,7 +263,8 @@ class APGConfig:
     ``steps_per_iteration`` Adam steps each; ``episodes`` random-start episodes per step;
     ``learning_rate`` constant Adam step size; ``policy`` "gru" or "mlp" of hidden ``width``;
     ``horizon`` episode length (500 in the paper); ``normalize`` running observation
-    normalisation; ``truncation`` optional truncated-BPTT window.
+    normalisation; ``truncation`` optional truncated-BPTT window; ``bodies`` "rods" (this library's) or
+    "brax_v1" (the authors' Brax v1 bodies, ``lagrange.tasks.make_task``).
     """
 
     task: str = "acrobot"
@@ -271,6 +278,7 @@ class APGConfig:
     normalize: bool = True
     truncation: int | None = None
     trig_observation: bool = False
+    bodies: str = "rods"
 
     def __post_init__(self):
         check_common(self)

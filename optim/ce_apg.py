@@ -61,6 +61,9 @@ class CEAPGConfig(InnerAPGConfig):
       truncation: truncated-BPTT window, None = whole episode [None].
       trig_observation: observe (sin th, cos th, dth) instead of wrapped angles [False]; the wrapped
         first-link angle jumps by 2 pi at every swing through hanging (see ``lagrange.tasks``).
+      bodies: "rods", this library's chains (paper-facts' lengths, thin-rod inertias), or "brax_v1", the bodies the
+        authors' Brax v1 configs describe (every inertia 1 kg m^2; ``lagrange.systems.BRAX_V1``) [the authors' runs:
+        brax_v1; ``paper()`` keeps "rods", the task every other field here is defined on].
       upright_starts: probability that a *training* episode starts balanced upright instead of
         hanging, a curriculum that shows every candidate the balance it must end in [0]. Fitness
         counts those episodes too; ``Trainer.task`` (what the examples evaluate) keeps the paper's

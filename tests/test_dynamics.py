@@ -113,6 +113,48 @@ def test_closed_forms(which):
         assert_close(got[3], want[3], rel=1e-13 * max(cond, 10.0), what=f"{name} qdd")
 
 
+def _com_inertia_cases(rng):
+    """The cart and acrobot chains built with every ``com``/``inertia`` keyword: the authors' Brax v1 bodies
+    (``lagrange.systems.BRAX_V1``) and random values, with the closed-form parameters they stand for."""
+    U = rng.uniform
+    b1 = lg.systems.BRAX_V1
+    a, c, d = b1["acrobot"], b1["cartpole"], b1["double_cartpole"]
+    yield "cartpole", lg.systems.cartpole(**c), cf.cartpole, cf.CartpoleParams(
+        c["cart_mass"], c["pole_mass"], c["pole_length"], c["pole_com"], c["pole_inertia"])
+    yield "acrobot", lg.systems.acrobot(**a), cf.acrobot, cf.AcrobotParams(
+        *a["masses"], *a["lengths"], *a["coms"], *a["inertias"])
+    yield "double_cartpole", lg.systems.double_cartpole(**d), cf.double_cartpole, cf.DoubleCartpoleParams(
+        d["cart_mass"], *d["pole_masses"], *d["pole_lengths"], *d["pole_coms"], *d["pole_inertias"])
+    l, lc, i = U(0.3, 2), U(0.05, 1), U(0.01, 2)
+    yield "cartpole", lg.systems.cartpole(pole_length=l, pole_com=lc, pole_inertia=i), cf.cartpole, \
+        cf.CartpoleParams(pole_length=l, pole_com=lc, pole_inertia=i)
+    (l1, l2), (c1, c2), (i1, i2) = U(0.3, 2, 2), U(0.05, 1, 2), U(0.01, 2, 2)
+    yield "acrobot", lg.systems.acrobot(lengths=(l1, l2), coms=(c1, c2), inertias=(i1, i2)), cf.acrobot, \
+        cf.AcrobotParams(l1=l1, l2=l2, lc1=c1, lc2=c2, I1=i1, I2=i2)
+    yield "double_cartpole", lg.systems.double_cartpole(pole_lengths=(l1, l2), pole_coms=(c1, c2),
+                                                        pole_inertias=(i1, i2)), cf.double_cartpole, \
+        cf.DoubleCartpoleParams(l1=l1, l2=l2, lc1=c1, lc2=c2, I1=i1, I2=i2)
+
+
+def test_com_and_inertia_keywords_match_closed_forms():
+    """The centre-of-mass and inertia keywords of the catalogue (and the Brax v1 presets built from them) give the
+    hand-written equations with those parameters, to 1e-12."""
+    rng = np.random.default_rng(2)
+    cases = list(_com_inertia_cases(rng))
+    assert np.allclose(cases[1][1].inertia, 1.0) and np.allclose(cases[1][1].com, 0.45)  # the presets are not the rods
+    for name, chain, ref, p in cases:
+        q, qd = states(rng, chain.n)
+        u = jnp.asarray(rng.uniform(-1, 1, (q.shape[0], 1)))
+        got = per_state(lambda ch, q, qd, u: (lg.mass_matrix(ch, q), lg.bias_forces(ch, q, qd),
+                                              lg.forward_dynamics(ch, q, qd, u)), chain, q, qd, u)
+        want = jax.jit(lambda q, qd, u: (ref.mass_matrix(p, q), ref.bias(p, q, qd),
+                                         ref.forward_dynamics(p, q, qd, u)))(q, qd, u)
+        assert_close(got[0], want[0], what=f"{name} M")
+        assert_close(got[1], want[1], what=f"{name} bias")
+        cond = float(np.max(np.linalg.cond(np.asarray(got[0]))))
+        assert_close(got[2], want[2], rel=1e-13 * max(cond, 10.0), what=f"{name} qdd")
+
+
 def test_closed_forms_are_not_trivially_equal():
     """A wrong parameter (pole length 1.0 vs 1.1) is far outside the tolerance: the check can fail."""
     rng = np.random.default_rng(2)

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import lagrange as lg
+from lagrange import tasks as lg_tasks
 from lagrange.tasks import chain_swingup
 from optim import apg, ce_apg, cem, checkpoint, papg
 from optim._loop import params_equal, run
@@ -46,11 +47,26 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
         (lambda: apg.APGConfig(learning_rate=-1.0), "learning_rate"),
         (lambda: apg.APGConfig(episodes=0), "episodes"),
         (lambda: papg.PAPGConfig(num_runs=0), "num_runs"),
+        (lambda: ce_apg.CEAPGConfig(bodies="mujoco"), r"bodies must be one of \['rods', 'brax_v1'\]"),
+        (lambda: apg.APGConfig(bodies="capsules"), "APGConfig.bodies"),
+        (lambda: apg.build_task(ce_apg.CEAPGConfig(task="custom", bodies="brax_v1"), lg_tasks.acrobot()), "bodies"),
     ],
 )
 def test_bad_configs_name_the_field(make, field):
     with pytest.raises(ValueError, match=field):
         make()
+
+
+def test_bodies_field_builds_the_brax_v1_task():
+    """``bodies`` reaches the trainer's task: the default is the rods task unchanged, "brax_v1" the authors' bodies."""
+    rods = apg.build_task(ce_apg.CEAPGConfig.laptop("acrobot"))
+    brax = apg.build_task(ce_apg.CEAPGConfig.laptop("acrobot", bodies="brax_v1"))
+    assert rods.trig and brax.trig
+    for task, bodies in ((rods, "rods"), (brax, "brax_v1")):
+        want = lg_tasks.make_task("acrobot", bodies).chain
+        for field in ("mass", "length", "com", "inertia"):
+            np.testing.assert_array_equal(getattr(task.chain, field), getattr(want, field))
+    assert not np.allclose(brax.chain.inertia, rods.chain.inertia)
 
 
 def test_paper_presets():

@@ -81,6 +81,28 @@ def test_paper_parameters():
     assert (a.first_pole, c.first_pole, d.first_pole) == (0, 1, 1) and (a.n_links, c.n_links, d.n_links) == (2, 1, 2)
 
 
+def test_brax_v1_bodies():
+    """``bodies="brax_v1"`` changes the chain (the authors' hinge spacings, inertia 1 kg m^2) and nothing else of the
+    task; the default is this library's rods, unchanged."""
+    for name in tasks.TASKS:
+        rods, brax = tasks.make_task(name), tasks.make_task(name, "brax_v1")
+        for field in ("mass", "length", "com", "inertia", "gear"):
+            np.testing.assert_array_equal(getattr(tasks.make_task(name, "rods").chain, field), getattr(rods.chain, field))
+        assert (brax.kind, brax.dt, brax.horizon, brax.noise, brax.substeps) == (rods.kind, rods.dt, rods.horizon,
+                                                                                  rods.noise, rods.substeps)
+        np.testing.assert_allclose(brax.chain.gear, rods.chain.gear)
+        poles = slice(brax.first_pole, None)
+        np.testing.assert_allclose(brax.chain.inertia[poles], 1.0)
+        assert np.all(np.asarray(rods.chain.inertia[poles]) < 0.5)
+    a = tasks.make_task("acrobot", "brax_v1").chain
+    np.testing.assert_allclose(a.mass, [2.5, 2.5]) and np.testing.assert_allclose(a.length, [0.9, 0.9])
+    np.testing.assert_allclose(a.com, [0.45, 0.45])
+    d = tasks.make_task("double_cartpole", "brax_v1").chain
+    np.testing.assert_allclose(d.com[1:], [0.3, 0.3]) and np.testing.assert_allclose(d.length[1:], [0.6, 0.6])
+    with pytest.raises(ValueError, match=r"bodies must be one of \['rods', 'brax_v1'\], got 'brax'"):
+        tasks.make_task("acrobot", "brax")
+
+
 def test_wrap_range():
     x = jnp.linspace(-20, 20, 10001)
     w = tasks.wrap(x)
