@@ -40,7 +40,7 @@ from benchmarks._cli import at_least
 from benchmarks._files import write_json
 from benchmarks.refine_swingup import arrival
 from benchmarks.upright_basin import linearise, lqr_gain, upright_state
-from lagrange.tasks import TaskState, balanced, make_task, wrap
+from lagrange.tasks import BODIES, TaskState, balanced, make_task, wrap
 
 RESULTS = pathlib.Path(__file__).resolve().parent / "results"
 EVAL_EPISODES = 16  # the paper tables' noisy starts
@@ -78,9 +78,10 @@ def make_controller(task, K, T: int):
     return episode
 
 
-def results_path(task_name: str, out: str | None = None) -> str:
-    """``out``, or the default result file of ``task_name``: ``benchmarks/results/swingup_lqr_<task>.json``."""
-    return out or str(RESULTS / f"swingup_lqr_{task_name}.json")
+def results_path(task_name: str, out: str | None = None, bodies: str = "rods") -> str:
+    """``out``, or the default result file of ``task_name``: ``benchmarks/results/swingup_lqr_<task>.json``
+    (``..._<task>_<bodies>.json`` for bodies other than the rods)."""
+    return out or str(RESULTS / f"swingup_lqr_{task_name}{'' if bodies == 'rods' else '_' + bodies}.json")
 
 
 def replay(task, K, row: dict):
@@ -138,18 +139,18 @@ def refine(episode, z, s0, *, steps: int, learning_rate: float):
     return z, float(best)
 
 
-def rerun_float64(task, K, T: int, z) -> tuple[float, bool]:
+def rerun_float64(task, K, T: int, z, bodies: str = "rods") -> tuple[float, bool]:
     """The controller's noise-free episode re-run in float64: ``(return, balanced)``. A swing-up that arrives at the
     edge of the LQR's basin can depend on round-off; one that holds in both precisions does not."""
     with jax.enable_x64(True):
-        task = make_task(task.kind)  # rebuilt inside the context: float64 parameters
+        task = make_task(task.kind, bodies)  # rebuilt inside the context: float64 parameters
         episode = make_controller(task, K, T)
         ret, states, _, _ = jax.jit(episode)(jnp.asarray(z, jnp.float64), hanging(task))
         return float(ret), bool(balanced(task, states.q))
 
 
 def one(task, K, T: int, seed: int, *, knots: int, population: int, elites: int, iterations: int,
-        refine_steps: int, learning_rate: float) -> dict:
+        refine_steps: int, learning_rate: float, bodies: str = "rods") -> dict:
     t0 = time.perf_counter()
     dtype = jnp.result_type(task.chain.mass)
     episode = make_controller(task, K, T)
@@ -160,7 +161,7 @@ def one(task, K, T: int, seed: int, *, knots: int, population: int, elites: int,
     z, seen = refine(episode, knots_to_offsets(c, T, task.horizon), s0, steps=refine_steps, learning_rate=learning_rate)
     ret, states, actions, rewards = jax.jit(episode)(z, s0)
     q = states.q
-    ret64, balanced64 = rerun_float64(task, K, T, z)
+    ret64, balanced64 = rerun_float64(task, K, T, z, bodies)
     starts = jax.vmap(task.reset)(jax.random.split(jax.random.PRNGKey(10_000), EVAL_EPISODES))
     noisy_ret, noisy, _, _ = jax.jit(jax.vmap(lambda s: episode(z, s)))(starts)
     return {
@@ -176,6 +177,7 @@ def one(task, K, T: int, seed: int, *, knots: int, population: int, elites: int,
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--task", choices=sorted(DEFAULTS), default="acrobot")
+    p.add_argument("--bodies", choices=BODIES, default="rods", help="the task's bodies (lagrange.tasks.make_task)")
     p.add_argument("--times", type=int, nargs="+", default=None, help="swing-up times T in control steps")
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="CEM seeds per T")
     p.add_argument("--knots", type=int, default=None)
@@ -198,7 +200,7 @@ def main(argv=None):
     seeds = args.seeds[:1] if args.quick else args.seeds
     iterations, refine_steps = (30, 500) if args.quick else (args.iterations, args.refine_steps)
     knots, lr = args.knots or knots, args.lr or lr
-    task = make_task(args.task)
+    task = make_task(args.task, args.bodies)
     at_least(knots=(knots, 2), population=(args.population, 2), elites=(args.elites, 1),
              iterations=(iterations, 1), refine_steps=(refine_steps, 0), times=(min(times), 1))
     if args.elites > args.population:
@@ -213,7 +215,7 @@ def main(argv=None):
     for T in times:
         for seed in seeds:
             r = one(task, K, T, seed, knots=knots, population=args.population, elites=args.elites,
-                    iterations=iterations, refine_steps=refine_steps, learning_rate=lr)
+                    iterations=iterations, refine_steps=refine_steps, learning_rate=lr, bodies=args.bodies)
             rows.append(r)
             print(f"T = {T} ({T * task.dt:.2f} s), seed {seed}: CEM {r['cem_return']:.1f} -> refined "
                   f"{r['return']:.1f} ({'balanced' if r['balanced'] else 'not balanced'}; float64 {r['return_float64']:.1f}, "
@@ -222,12 +224,12 @@ def main(argv=None):
                   flush=True)
     held = [r for r in rows if r["balanced"] and r["balanced_float64"]]
     best = max(held, key=lambda r: r["return"]) if held else None
-    out = {"task": args.task, "horizon": task.horizon, "knots": knots, "population": args.population,
+    out = {"task": args.task, **({"bodies": args.bodies} if args.bodies != "rods" else {}), "horizon": task.horizon, "knots": knots, "population": args.population,
            "elites": args.elites, "iterations": iterations, "refine_steps": refine_steps, "learning_rate": lr,
            "lqr_r": args.r, "lqr_gain": np.asarray(K).tolist(),
            "best_balanced_return": best["return"] if best else None,
            "best": best, "rows": [{k: v for k, v in r.items() if k not in ("offsets", "actions")} for r in rows]}
-    path = results_path(args.task, args.out)
+    path = results_path(args.task, args.out, args.bodies)
     write_json(path, out)
     if args.plot and best:
         plot(task, K, best, args.plot)
@@ -240,12 +242,12 @@ def replot(args) -> dict:
     """``--replot``: draw the best controller saved in a result file, with the gain saved beside it."""
     if not args.plot:
         raise SystemExit("--replot needs --plot PATH")
-    path = results_path(args.task, args.out)
+    path = results_path(args.task, args.out, args.bodies)
     with open(path) as f:
         out = json.load(f)
-    if out.get("task") != args.task or not out.get("best"):
-        raise SystemExit(f"{path} holds no balanced controller for --task {args.task}")
-    plot(make_task(args.task), np.asarray(out["lqr_gain"]), out["best"], args.plot)
+    if out.get("task") != args.task or out.get("bodies", "rods") != args.bodies or not out.get("best"):
+        raise SystemExit(f"{path} holds no balanced controller for --task {args.task} --bodies {args.bodies}")
+    plot(make_task(args.task, args.bodies), np.asarray(out["lqr_gain"]), out["best"], args.plot)
     print(f"drew {args.plot} from {path}")
     return out
 

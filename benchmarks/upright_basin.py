@@ -2,6 +2,7 @@
 
     python -m benchmarks.upright_basin                   # the acrobot (seconds)
     python -m benchmarks.upright_basin --task double_cartpole
+    python -m benchmarks.upright_basin --bodies brax_v1     # on the authors' Brax v1 bodies
 
 The swing-up tasks end in a balance that "balanced" judges to 0.2 rad. This script asks how much of that
 0.2 rad a simple stabilising controller can recover from with the task's own actuator limit. It linearises
@@ -14,7 +15,7 @@ starting at rest. A start "recovers" when, after ``--steps`` control steps, ever
 up to which every start recovers (``every_lean_recovered``: the whole grid did); the closed-loop spectral radius of the linear model (< 1: stable); the gain.
 A large ``r`` gives the smallest gains (least saturation); LQR is one controller, not the best possible one, so
 the numbers are a lower bound on what any controller could recover from.
-Writes ``benchmarks/results/upright_basin_<task>.json``.
+Writes ``benchmarks/results/upright_basin_<task>.json`` (``..._<task>_brax_v1.json`` for ``--bodies brax_v1``).
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ import numpy as np
 import scipy.linalg
 
 from benchmarks._files import write_json
-from lagrange.tasks import TASKS, TaskState, make_task, wrap
+from lagrange.tasks import BODIES, TASKS, TaskState, make_task, wrap
 
 RESULTS = pathlib.Path(__file__).resolve().parent / "results"
 LEANS = (0.005, 0.01, 0.02, 0.03, 0.04, 0.05, 0.07, 0.1, 0.15, 0.2, 0.3, 0.5, 0.7, 1.0)
@@ -116,6 +117,7 @@ def basin(task, r: float, steps: int) -> dict:
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--task", choices=tuple(TASKS), default="acrobot")
+    p.add_argument("--bodies", choices=BODIES, default="rods", help="the task's bodies (lagrange.tasks.make_task)")
     p.add_argument("--r", nargs="+", type=float, default=[1.0, 1e2, 1e4],
                    help="LQR control weights R (larger: smaller gains)")
     p.add_argument("--steps", type=int, default=3000, help="control steps before a start is judged")
@@ -125,7 +127,7 @@ def main(argv=None):
         raise SystemExit(f"--steps must be >= 1, got {args.steps}")
     if any(not r > 0 for r in args.r):
         raise SystemExit(f"--r must be > 0, got {args.r}")
-    task = make_task(args.task)
+    task = make_task(args.task, args.bodies)
     rows = []
     for r in args.r:
         row = basin(task, r, args.steps)
@@ -134,9 +136,10 @@ def main(argv=None):
                           for j, v in row["joints"].items())
         print(f"{args.task} R = {r:g}: closed-loop spectral radius {row['closed_loop_spectral_radius']:.4f}; "
               f"largest lean recovered from rest: {leans}", flush=True)
-    out = {"task": args.task, "dt": task.dt, "gear": np.asarray(task.chain.gear).tolist(), "steps": args.steps,
+    out = {"task": args.task, **({"bodies": args.bodies} if args.bodies != "rods" else {}), "dt": task.dt, "gear": np.asarray(task.chain.gear).tolist(), "steps": args.steps,
            "leans": list(LEANS), "rows": rows}
-    path = args.out or str(RESULTS / f"upright_basin_{args.task}.json")
+    suffix = "" if args.bodies == "rods" else f"_{args.bodies}"
+    path = args.out or str(RESULTS / f"upright_basin_{args.task}{suffix}.json")
     write_json(path, out)
     print(f"wrote {path}")
 

@@ -98,6 +98,10 @@ def test_main_writes_a_replayable_result(tmp_path):
         sl.main(["--task", "acrobot", "--out", str(out), "--replot", "--plot", str(tmp_path / "no.png")])
     with pytest.raises(SystemExit, match="--plot"):
         sl.main(["--task", "cartpole", "--out", str(out), "--replot"])
+    with pytest.raises(SystemExit, match="--bodies brax_v1"):  # a rods result is not the Brax v1 bodies' controller
+        sl.main(["--task", "cartpole", "--bodies", "brax_v1", "--out", str(out), "--replot", "--plot",
+                 str(tmp_path / "no.png")])
+    assert sl.results_path("acrobot", bodies="brax_v1").endswith("swingup_lqr_acrobot_brax_v1.json")
 
 
 @pytest.mark.parametrize("argv, field", [(["--elites", "5000"], "--elites"), (["--times", "600"], "--times"),
