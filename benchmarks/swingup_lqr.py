@@ -224,8 +224,8 @@ def main(argv=None):
                   flush=True)
     held = [r for r in rows if r["balanced"] and r["balanced_float64"]]
     best = max(held, key=lambda r: r["return"]) if held else None
-    out = {"task": args.task, **({"bodies": args.bodies} if args.bodies != "rods" else {}), "horizon": task.horizon, "knots": knots, "population": args.population,
-           "elites": args.elites, "iterations": iterations, "refine_steps": refine_steps, "learning_rate": lr,
+    out = {"task": args.task, **({"bodies": args.bodies} if args.bodies != "rods" else {}), "horizon": task.horizon,
+           "knots": knots, "population": args.population, "elites": args.elites, "iterations": iterations, "refine_steps": refine_steps, "learning_rate": lr,
            "lqr_r": args.r, "lqr_gain": np.asarray(K).tolist(),
            "best_balanced_return": best["return"] if best else None,
            "best": best, "rows": [{k: v for k, v in r.items() if k not in ("offsets", "actions")} for r in rows]}

@@ -136,8 +136,8 @@ def main(argv=None):
                           for j, v in row["joints"].items())
         print(f"{args.task} R = {r:g}: closed-loop spectral radius {row['closed_loop_spectral_radius']:.4f}; "
               f"largest lean recovered from rest: {leans}", flush=True)
-    out = {"task": args.task, **({"bodies": args.bodies} if args.bodies != "rods" else {}), "dt": task.dt, "gear": np.asarray(task.chain.gear).tolist(), "steps": args.steps,
-           "leans": list(LEANS), "rows": rows}
+    out = {"task": args.task, **({"bodies": args.bodies} if args.bodies != "rods" else {}), "dt": task.dt,
+           "gear": np.asarray(task.chain.gear).tolist(), "steps": args.steps, "leans": list(LEANS), "rows": rows}
     suffix = "" if args.bodies == "rods" else f"_{args.bodies}"
     path = args.out or str(RESULTS / f"upright_basin_{args.task}{suffix}.json")
     write_json(path, out)
