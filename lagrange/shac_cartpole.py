@@ -61,6 +61,7 @@ class SHACCartpole(eqx.Module):
 
     kind = "shac_cartpole"
     cart = True
+    first_pole = 1  # q = (x, theta): what lagrange.tasks.balanced / upright_error read
     n_links = 1
 
     @property

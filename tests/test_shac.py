@@ -20,7 +20,7 @@ import pytest
 
 import lagrange as lg
 from lagrange.shac_cartpole import POLE_INERTIA, shac_cartpole
-from lagrange.tasks import TaskState, chain_swingup
+from lagrange.tasks import TaskState, balanced, chain_swingup, upright_error
 from optim import shac
 
 # ---------------------------------------------------------------------------------------------
@@ -37,6 +37,10 @@ def test_shac_cartpole_physics_and_readings():
     # Upright pole at rest, cart at 0: reward 0 (the maximum); observation (x, dx, sin th, cos th, dth).
     up = TaskState(jnp.array([0.0, jnp.pi]), jnp.zeros(2))
     assert float(task.reward(up, jnp.zeros(1), up)) == 0.0
+    # "balanced" reads the pole after the cart (examples/shac_cartpole.py evaluates with it)
+    traj = jnp.stack([up.q, up.q.at[1].add(0.1), up.q.at[1].add(0.3)])
+    assert bool(balanced(task, traj[:2])) and not bool(balanced(task, traj))
+    np.testing.assert_allclose(upright_error(task, traj), [0.0, 0.1, 0.3], atol=1e-6)
     np.testing.assert_allclose(task.observe(up), [0, 0, 0, 1, 0], atol=1e-15)
     # The authors' weights, by hand: th = q - pi wrapped.
     s = TaskState(jnp.array([0.3, 0.5]), jnp.array([-0.7, 2.0]))
