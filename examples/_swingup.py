@@ -7,7 +7,7 @@ iteration), ``results.json``, ``learning_curve.png``, ``swingup.png`` and ``swin
 from __future__ import annotations
 
 import argparse
-import json
+import dataclasses
 import os
 from typing import Callable
 
@@ -19,8 +19,9 @@ import jax  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from benchmarks._files import write_json  # noqa: E402
 from lagrange.plotting import episode_animation, episode_figure  # noqa: E402
-from lagrange.tasks import Task, balanced  # noqa: E402
+from lagrange.tasks import BODIES, Task, balanced  # noqa: E402
 from optim import ce_apg  # noqa: E402
 from optim._loop import run  # noqa: E402
 from optim.apg import config_to_dict, episode, evaluate  # noqa: E402
@@ -30,7 +31,7 @@ from optim.devices import cpu_core_count, use_cpu_cores  # noqa: E402
 EVAL_EPISODES = 16
 
 
-def parse(description: str, default_out: str, argv=None):
+def parse(description: str, default_out: str, argv=None, *, bodies: bool = True):
     p = argparse.ArgumentParser(description=description, formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("--seed", type=int, default=0, help="PRNG seed (training and evaluation starts)")
     p.add_argument("--iterations", type=int, default=None,
@@ -41,6 +42,9 @@ def parse(description: str, default_out: str, argv=None):
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--cpu-devices", type=int, default=cpu_core_count(),
                    help="JAX CPU devices to shard the candidates over (default: one per core; 1 = a single device)")
+    if bodies:  # a paper task; an example that brings its own chain has no such choice
+        p.add_argument("--bodies", choices=BODIES, default="rods",
+                       help="the chain: this library's rods, or the bodies the authors simulated in Brax v1")
     return p.parse_args(argv)
 
 
@@ -48,10 +52,12 @@ def main(description: str, default_out: str, config: ce_apg.CEAPGConfig, quick: 
          task: Task | Callable[[], Task] | None = None, paper_return: float | None = None, argv=None) -> dict:
     """Parse the flags, train, evaluate and write the artefacts. ``task``: a Task, or a function that builds
     one (called after the CPU devices are set: building a chain runs JAX, which fixes the device count)."""
-    args = parse(description, default_out, argv)
+    args = parse(description, default_out, argv, bodies=task is None)
     if args.cpu_devices < 1:
         raise SystemExit(f"--cpu-devices must be >= 1, got {args.cpu_devices}")
     cfg = quick if args.quick else config
+    if getattr(args, "bodies", "rods") != cfg.bodies:
+        cfg = dataclasses.replace(cfg, bodies=args.bodies)
     if args.iterations is not None:
         if args.iterations < 1:
             raise SystemExit(f"--iterations must be >= 1, got {args.iterations}")
@@ -65,7 +71,7 @@ def main(description: str, default_out: str, config: ce_apg.CEAPGConfig, quick: 
     ckpt = os.path.join(args.out, "checkpoint.eqx")
     if not args.resume and os.path.exists(ckpt):
         os.remove(ckpt)
-    print(f"CE-APG on {cfg.task}: {cfg.iterations} iterations, {cfg.total_env_steps():.2e} env steps; "
+    print(f"CE-APG on {cfg.task}{'' if cfg.bodies == 'rods' else f' ({cfg.bodies} bodies)'}: {cfg.iterations} iterations, {cfg.total_env_steps():.2e} env steps; "
           f"{len(jax.devices())} device(s); writing to {args.out}")
     try:
         state, history = run(trainer, jax.random.PRNGKey(args.seed), iterations=cfg.iterations, ckpt_path=ckpt,
@@ -106,8 +112,7 @@ def main(description: str, default_out: str, config: ce_apg.CEAPGConfig, quick: 
         "paper_return": paper_return,
         "config": config_to_dict(cfg),
     }
-    with open(os.path.join(args.out, "results.json"), "w") as f:
-        json.dump(results, f, indent=2)
+    write_json(os.path.join(args.out, "results.json"), results, indent=2)  # atomically: a kill leaves the old file
     learning_curve(history, os.path.join(args.out, "learning_curve.png"), cfg, paper_return)
     title = f"{task.kind}: return {float(ep.ret):.0f}, balanced {bool(balanced(task, ep.q))}"
     episode_figure(task, ep.q, ep.actions, os.path.join(args.out, "swingup.png"), qd=ep.qd, title=title)

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import os
+import sys
 
 import matplotlib
 
@@ -23,6 +23,9 @@ import jax  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # the repository root: benchmarks
+
+from benchmarks._files import write_json  # noqa: E402
 from optim import shac  # noqa: E402
 
 QUICK = dict(num_envs=32, epochs=150)
@@ -67,8 +70,7 @@ def main(argv=None) -> dict:
         "curve": curve,
         "config": dataclasses.asdict(cfg),
     }
-    with open(os.path.join(args.out, "results.json"), "w") as f:
-        json.dump(results, f, indent=2)
+    write_json(os.path.join(args.out, "results.json"), results, indent=2)  # atomically: a kill leaves the old file
 
     fig, ax = plt.subplots(figsize=(6, 4))
     ax.plot([c["env_steps"] for c in curve], [c["return"] for c in curve], "o-", label="deterministic evaluation")

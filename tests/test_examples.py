@@ -21,7 +21,7 @@ def _run(*args, ok=True):
 
 def test_help():
     out = _run("--help").stdout
-    for flag in ("--seed", "--iterations", "--out", "--resume", "--quick"):
+    for flag in ("--seed", "--iterations", "--out", "--resume", "--quick", "--bodies"):
         assert flag in out
 
 
@@ -50,3 +50,22 @@ def test_quick_run_writes_every_artefact(tmp_path):
     err = _run("--quick", "--iterations", "1", "--out", str(out), "--seed", "4", "--resume", "--no-progress",
                ok=False).stderr
     assert "cannot resume" in err and "seed" in err and "Traceback" not in err
+    # --bodies reaches the config: the rods' checkpoint is refused for the Brax v1 bodies, naming the field
+    err = _run("--quick", "--iterations", "1", "--out", str(out), "--seed", "3", "--resume", "--bodies", "brax_v1",
+               "--no-progress", ok=False).stderr
+    assert "cannot resume" in err and "bodies" in err and "brax_v1" in err and "Traceback" not in err
+    assert not (out / "results.json.tmp").exists()  # results.json is written through a temporary file
+
+
+def test_shac_example_runs_and_writes_its_results(tmp_path):
+    """examples/shac_cartpole.py end to end on two epochs (it once crashed at its evaluation: the SHAC cartpole
+    lacked the ``first_pole`` that ``balanced`` reads)."""
+    env = dict(os.environ, MPLBACKEND="Agg")
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "examples", "shac_cartpole.py"), "--epochs", "2",
+                           "--eval-every", "1", "--out", str(tmp_path), "--no-progress"],
+                          capture_output=True, text=True, env=env, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    res = json.loads((tmp_path / "results.json").read_text())
+    assert res["epochs"] == 2 and res["eval_episodes"] == 16 and 0.0 <= res["balanced_fraction"] <= 1.0
+    assert res["env_steps"] == 2 * res["config"]["num_envs"] * res["config"]["short_horizon"]  # epochs x envs x h
+    assert (tmp_path / "learning_curve.png").stat().st_size > 0
