@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import os
 
+from lagrange.tasks import BODIES
+
 
 def at_least(**minimums) -> None:
     """``at_least(steps=(args.steps, 1), ...)``: exit naming the flag (``--steps``) if a value is below its minimum."""
@@ -28,6 +30,16 @@ def add_checkpoint_flags(parser, *, runs: str, seeds: list[int]) -> None:
     parser.add_argument("--task", choices=("acrobot", "cartpole", "double_cartpole"), default="acrobot")
     parser.add_argument("--seeds", nargs="+", type=int, default=seeds)
     parser.add_argument("--cpu-devices", type=int, default=1)
+
+
+def add_bodies_flag(parser) -> None:
+    """``--bodies rods|brax_v1``: the paper task's bodies (``lagrange.tasks.make_task``)."""
+    parser.add_argument("--bodies", choices=BODIES, default="rods", help="the task's bodies (lagrange.tasks.make_task)")
+
+
+def bodies_suffix(bodies: str) -> str:
+    """``""`` for the rods, else ``"_<bodies>"``: a result on other bodies gets its own file beside the rods' one."""
+    return "" if bodies == "rods" else f"_{bodies}"
 
 
 def runs_result_path(out: str | None, results, stem: str, runs: str) -> str:

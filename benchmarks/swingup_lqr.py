@@ -36,11 +36,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from benchmarks._ascent import adam_best_seen
-from benchmarks._cli import at_least
+from benchmarks._cli import add_bodies_flag, at_least, bodies_suffix
 from benchmarks._files import write_json
 from benchmarks.refine_swingup import arrival
 from benchmarks.upright_basin import linearise, lqr_gain, upright_state
-from lagrange.tasks import BODIES, TaskState, balanced, make_task, wrap
+from lagrange.tasks import TaskState, balanced, make_task, wrap
 
 RESULTS = pathlib.Path(__file__).resolve().parent / "results"
 EVAL_EPISODES = 16  # the paper tables' noisy starts
@@ -81,7 +81,7 @@ def make_controller(task, K, T: int):
 def results_path(task_name: str, out: str | None = None, bodies: str = "rods") -> str:
     """``out``, or the default result file of ``task_name``: ``benchmarks/results/swingup_lqr_<task>.json``
     (``..._<task>_<bodies>.json`` for bodies other than the rods)."""
-    return out or str(RESULTS / f"swingup_lqr_{task_name}{'' if bodies == 'rods' else '_' + bodies}.json")
+    return out or str(RESULTS / f"swingup_lqr_{task_name}{bodies_suffix(bodies)}.json")
 
 
 def replay(task, K, row: dict):
@@ -177,7 +177,7 @@ def one(task, K, T: int, seed: int, *, knots: int, population: int, elites: int,
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--task", choices=sorted(DEFAULTS), default="acrobot")
-    p.add_argument("--bodies", choices=BODIES, default="rods", help="the task's bodies (lagrange.tasks.make_task)")
+    add_bodies_flag(p)
     p.add_argument("--times", type=int, nargs="+", default=None, help="swing-up times T in control steps")
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="CEM seeds per T")
     p.add_argument("--knots", type=int, default=None)
@@ -225,7 +225,8 @@ def main(argv=None):
     held = [r for r in rows if r["balanced"] and r["balanced_float64"]]
     best = max(held, key=lambda r: r["return"]) if held else None
     out = {"task": args.task, **({"bodies": args.bodies} if args.bodies != "rods" else {}), "horizon": task.horizon,
-           "knots": knots, "population": args.population, "elites": args.elites, "iterations": iterations, "refine_steps": refine_steps, "learning_rate": lr,
+           "knots": knots, "population": args.population, "elites": args.elites, "iterations": iterations,
+           "refine_steps": refine_steps, "learning_rate": lr,
            "lqr_r": args.r, "lqr_gain": np.asarray(K).tolist(),
            "best_balanced_return": best["return"] if best else None,
            "best": best, "rows": [{k: v for k, v in r.items() if k not in ("offsets", "actions")} for r in rows]}

@@ -28,8 +28,9 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.linalg
 
+from benchmarks._cli import add_bodies_flag, bodies_suffix
 from benchmarks._files import write_json
-from lagrange.tasks import BODIES, TASKS, TaskState, make_task, wrap
+from lagrange.tasks import TASKS, TaskState, make_task, wrap
 
 RESULTS = pathlib.Path(__file__).resolve().parent / "results"
 LEANS = (0.005, 0.01, 0.02, 0.03, 0.04, 0.05, 0.07, 0.1, 0.15, 0.2, 0.3, 0.5, 0.7, 1.0)
@@ -117,7 +118,7 @@ def basin(task, r: float, steps: int) -> dict:
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--task", choices=tuple(TASKS), default="acrobot")
-    p.add_argument("--bodies", choices=BODIES, default="rods", help="the task's bodies (lagrange.tasks.make_task)")
+    add_bodies_flag(p)
     p.add_argument("--r", nargs="+", type=float, default=[1.0, 1e2, 1e4],
                    help="LQR control weights R (larger: smaller gains)")
     p.add_argument("--steps", type=int, default=3000, help="control steps before a start is judged")
@@ -138,8 +139,7 @@ def main(argv=None):
               f"largest lean recovered from rest: {leans}", flush=True)
     out = {"task": args.task, **({"bodies": args.bodies} if args.bodies != "rods" else {}), "dt": task.dt,
            "gear": np.asarray(task.chain.gear).tolist(), "steps": args.steps, "leans": list(LEANS), "rows": rows}
-    suffix = "" if args.bodies == "rods" else f"_{args.bodies}"
-    path = args.out or str(RESULTS / f"upright_basin_{args.task}{suffix}.json")
+    path = args.out or str(RESULTS / f"upright_basin_{args.task}{bodies_suffix(args.bodies)}.json")
     write_json(path, out)
     print(f"wrote {path}")
 

@@ -71,7 +71,8 @@ def main(description: str, default_out: str, config: ce_apg.CEAPGConfig, quick: 
     ckpt = os.path.join(args.out, "checkpoint.eqx")
     if not args.resume and os.path.exists(ckpt):
         os.remove(ckpt)
-    print(f"CE-APG on {cfg.task}{'' if cfg.bodies == 'rods' else f' ({cfg.bodies} bodies)'}: {cfg.iterations} iterations, {cfg.total_env_steps():.2e} env steps; "
+    on = cfg.task if cfg.bodies == "rods" else f"{cfg.task} ({cfg.bodies} bodies)"
+    print(f"CE-APG on {on}: {cfg.iterations} iterations, {cfg.total_env_steps():.2e} env steps; "
           f"{len(jax.devices())} device(s); writing to {args.out}")
     try:
         state, history = run(trainer, jax.random.PRNGKey(args.seed), iterations=cfg.iterations, ckpt_path=ckpt,

@@ -73,8 +73,8 @@ from lagrange.chain import Chain
 from lagrange.integrate import step as _step
 from lagrange.solvers import RK4
 
-__all__ = ["TaskState", "Task", "control_step", "acrobot", "cartpole", "double_cartpole", "make_task", "TASKS", "BODIES",
-           "balanced", "upright_error", "wrap", "chain_swingup"]
+__all__ = ["TaskState", "Task", "control_step", "acrobot", "cartpole", "double_cartpole", "make_task", "TASKS",
+           "BODIES", "balanced", "upright_error", "wrap", "chain_swingup"]
 
 
 def wrap(angle):

@@ -124,8 +124,8 @@ def build_task(cfg, task: Task | None = None) -> Task:
             raise ValueError(f"{type(cfg).__name__}.task is 'custom': pass the Task to make_trainer(config, task)")
         task = make_task(cfg.task, cfg.bodies)
     elif cfg.bodies != "rods":
-        raise ValueError(f"{type(cfg).__name__}.bodies={cfg.bodies!r} names the bodies of a paper task; a task passed to "
-                         f"make_trainer brings its own chain (leave bodies='rods')")
+        raise ValueError(f"{type(cfg).__name__}.bodies={cfg.bodies!r} names the bodies of a paper task; a task "
+                         f"passed to make_trainer brings its own chain (leave bodies='rods')")
     if getattr(cfg, "trig_observation", False) and not task.trig:  # a given task too, not silently ignored
         task = dataclasses.replace(task, trig=True)
     if cfg.horizon != task.horizon:

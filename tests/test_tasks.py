@@ -87,7 +87,8 @@ def test_brax_v1_bodies():
     for name in tasks.TASKS:
         rods, brax = tasks.make_task(name), tasks.make_task(name, "brax_v1")
         for field in ("mass", "length", "com", "inertia", "gear"):
-            np.testing.assert_array_equal(getattr(tasks.make_task(name, "rods").chain, field), getattr(rods.chain, field))
+            np.testing.assert_array_equal(getattr(tasks.make_task(name, "rods").chain, field),
+                                          getattr(rods.chain, field))
         assert (brax.kind, brax.dt, brax.horizon, brax.noise, brax.substeps) == (rods.kind, rods.dt, rods.horizon,
                                                                                   rods.noise, rods.substeps)
         np.testing.assert_allclose(brax.chain.gear, rods.chain.gear)
