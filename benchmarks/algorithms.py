@@ -5,6 +5,7 @@
     python -m benchmarks.algorithms --budget laptop --algos ce_apg --ce-apg-from runs/paper_tables/laptop
     python -m benchmarks.algorithms --budget laptop --plot-only      # table and plots from the saved runs
     python -m benchmarks.algorithms --budget full                    # the paper's budgets, 8 seeds (days here)
+    python -m benchmarks.algorithms --budget laptop --bodies brax_v1 --tasks acrobot   # on the authors' bodies
 
 Every algorithm trains on the same task objects (:func:`lagrange.tasks.make_task`; the Brax trainers see
 them through :class:`lagrange.envs.BraxEnv`, unchanged). The final policy of each run is evaluated
@@ -12,7 +13,9 @@ them through :class:`lagrange.envs.BraxEnv`, unchanged). The final policy of eac
 task's own 500-step return and :func:`lagrange.tasks.balanced`. Learning curves are deterministic
 evaluation returns against simulated environment steps and against wall-clock seconds since the start of
 the run (compilation and evaluation included). Brax's curves use Brax's own evaluator
-(``deterministic_eval=True``) on its own random starts.
+(``deterministic_eval=True``) on its own random starts. ``--bodies brax_v1`` puts every algorithm on the
+authors' Brax v1 bodies instead of this library's rods (``make_task(name, "brax_v1")``, the bodies the paper's
+Table I was measured on); its runs, table and plots get a ``_brax_v1`` suffix.
 
 Budgets (``--budget``):
 
@@ -59,6 +62,7 @@ import jax.numpy as jnp  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from benchmarks._cli import add_bodies_flag, bodies_suffix  # noqa: E402
 from benchmarks._files import write_json, write_text  # noqa: E402
 from lagrange.tasks import balanced, make_task  # noqa: E402
 from optim import ce_apg, shac  # noqa: E402
@@ -167,10 +171,10 @@ def _evaluate(task, policy, normalizer, seed):
 # one run per algorithm: returns (final returns, balanced flags, curve, env_steps, wall_clock)
 
 
-def run_ce_apg(name, seed, budget):
+def run_ce_apg(name, seed, budget, bodies="rods"):
     budget = dict(budget)
     preset = {"paper": ce_apg.CEAPGConfig.paper, "laptop": ce_apg.CEAPGConfig.laptop}[budget.pop("preset", "paper")]
-    cfg = preset(name, **budget)
+    cfg = preset(name, bodies=bodies, **budget)
     trainer = ce_apg.make_trainer(cfg)
     t0 = time.perf_counter()
     state = trainer.init(jax.random.PRNGKey(seed))
@@ -185,8 +189,8 @@ def run_ce_apg(name, seed, budget):
     return rets, bal, curve, steps, time.perf_counter() - t0
 
 
-def run_shac(name, seed, budget):
-    cfg = shac.SHACConfig(task=name, **budget)
+def run_shac(name, seed, budget, bodies="rods"):
+    cfg = shac.SHACConfig(task=name, bodies=bodies, **budget)
     trainer = shac.make_trainer(cfg)
     t0 = time.perf_counter()
     every = max(1, cfg.epochs // 10)
@@ -211,10 +215,10 @@ class Diverged(Exception):
         self.curve = curve
 
 
-def _run_brax(kind, name, seed, budget):
+def _run_brax(kind, name, seed, budget, bodies="rods"):
     from lagrange.envs import BraxEnv
 
-    task = make_task(name)
+    task = make_task(name, bodies)
     env = BraxEnv(task)
     budget = dict(budget)
     curve = []
@@ -260,9 +264,9 @@ def _run_brax(kind, name, seed, budget):
 RUNNERS = {
     "ce_apg": run_ce_apg,
     "shac": run_shac,
-    "ppo": lambda n, s, b: _run_brax("ppo", n, s, b),
-    "sac": lambda n, s, b: _run_brax("sac", n, s, b),
-    "brax_apg": lambda n, s, b: _run_brax("brax_apg", n, s, b),
+    "ppo": lambda n, s, b, bodies="rods": _run_brax("ppo", n, s, b, bodies),
+    "sac": lambda n, s, b, bodies="rods": _run_brax("sac", n, s, b, bodies),
+    "brax_apg": lambda n, s, b, bodies="rods": _run_brax("brax_apg", n, s, b, bodies),
 }
 
 LABELS = {"ce_apg": "CE-APG", "shac": "SHAC", "ppo": "Brax PPO", "sac": "Brax SAC", "brax_apg": "Brax APG"}
@@ -275,11 +279,12 @@ def _run_path(runs_dir, algo, task, seed):
     return os.path.join(runs_dir, f"{algo}_{task}_{seed}.json")
 
 
-def train_one(algo, task, seed, budget, budget_name):
-    """Train and evaluate one (algorithm, task, seed); returns the run's result dict."""
+def train_one(algo, task, seed, budget, budget_name, bodies="rods"):
+    """Train and evaluate one (algorithm, task on ``bodies``, seed); returns the run's result dict."""
     load0, cpu0, t0 = os.getloadavg(), time.process_time(), time.perf_counter()
+    marker = {} if bodies == "rods" else {"bodies": bodies}  # rods run files stay as they were
     try:
-        rets, bal, curve, steps, wall = RUNNERS[algo](task, seed, budget)
+        rets, bal, curve, steps, wall = RUNNERS[algo](task, seed, budget, bodies)
     except Diverged as e:  # recorded as a failed seed, not retried
         return {"algo": algo, "task": task, "seed": seed, "budget": budget_name, "source": "trained",
                 "failed": f"diverged: {e}; last evaluation return {e.curve[-1][2] if e.curve else None}",
@@ -287,23 +292,29 @@ def train_one(algo, task, seed, budget, budget_name):
                 "balanced_fraction": 0.0, "balanced": False, "env_steps": None,
                 "wall_clock": time.perf_counter() - t0, "cpu_seconds": time.process_time() - cpu0,
                 "loadavg_start": list(load0), "loadavg_end": list(os.getloadavg()), "config": budget,
-                "curve": e.curve, "curve_kind": "evaluation"}
+                "curve": e.curve, "curve_kind": "evaluation", **marker}
     return {"algo": algo, "task": task, "seed": seed, "budget": budget_name, "source": "trained",
             "return": float(rets.mean()), "returns": rets.tolist(), "balanced_fraction": float(bal.mean()),
             "balanced": bool(bal.all()), "env_steps": float(steps), "wall_clock": float(wall),
             "cpu_seconds": time.process_time() - cpu0, "loadavg_start": list(load0),
-            "loadavg_end": list(os.getloadavg()), "config": budget, "curve": curve, "curve_kind": "evaluation"}
+            "loadavg_end": list(os.getloadavg()), "config": budget, "curve": curve, "curve_kind": "evaluation",
+            **marker}
 
 
-def import_ce_apg(task, seed, src_dir):
+def import_ce_apg(task, seed, src_dir, bodies="rods"):
     """CE-APG's result for (task, seed) from ``benchmarks/paper_tables.py``'s ``ce_apg_<task>_<seed>.json``
     in ``src_dir`` (None when absent). Its curve is the best candidate's training fitness per iteration
-    from the checkpoint header (``.eqx`` beside it), when there is one; it has no per-episode returns."""
+    from the checkpoint header (``.eqx`` beside it), when there is one; it has no per-episode returns.
+    Exits if the file's run was trained on other bodies than ``bodies``."""
     path = os.path.join(src_dir, f"ce_apg_{task}_{seed}.json")
     if not os.path.exists(path):
         return None
     with open(path) as f:
         r = json.load(f)
+    trained_on = (r.get("config") or {}).get("bodies", "rods")
+    if trained_on != bodies:
+        raise SystemExit(f"{path} was trained on bodies={trained_on!r}, not --bodies {bodies}: pick the paper_tables "
+                         f"folder of those bodies (e.g. runs/paper_tables/laptop_braxv1 for brax_v1)")
     curve, kind = [], None
     ckpt = path[:-len(".json")] + ".eqx"
     if os.path.exists(ckpt):
@@ -316,7 +327,7 @@ def import_ce_apg(task, seed, src_dir):
             "return": float(r["return"]), "returns": None, "balanced_fraction": r.get("balanced_fraction"),
             "balanced": bool(r["balanced"]), "env_steps": float(r["env_steps"]),
             "wall_clock": float(r["wall_clock_seconds"]), "cpu_seconds": None, "config": r.get("config"),
-            "curve": curve, "curve_kind": kind}
+            "curve": curve, "curve_kind": kind, **({} if bodies == "rods" else {"bodies": bodies})}
 
 
 def restore_runs(json_path, runs_dir):
@@ -363,6 +374,7 @@ def main(argv=None):
     p.add_argument("--force", action="store_true", help="redo the selected runs even where a result file exists")
     p.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "results"))
     p.add_argument("--plot-only", action="store_true", help="only redo the table and plots from the saved runs")
+    add_bodies_flag(p)
     args = p.parse_args(argv)
     if args.quick and args.budget not in (None, "quick"):
         raise SystemExit(f"--quick contradicts --budget {args.budget}")
@@ -371,8 +383,8 @@ def main(argv=None):
     if any(s < 0 for s in seeds):
         raise SystemExit(f"--seeds must be >= 0, got {seeds}")
     budgets = BUDGETS[budget_name]
-    tag = TAGS[budget_name]
-    runs_dir = os.path.join(args.runs_dir, budget_name)
+    tag = TAGS[budget_name] + bodies_suffix(args.bodies)
+    runs_dir = os.path.join(args.runs_dir, budget_name + bodies_suffix(args.bodies))
     os.makedirs(args.out, exist_ok=True)
     os.makedirs(runs_dir, exist_ok=True)
     json_path = os.path.join(args.out, f"{tag}.json")
@@ -384,7 +396,7 @@ def main(argv=None):
             for seed in seeds:
                 path = _run_path(runs_dir, algo, task, seed)
                 if algo == "ce_apg" and args.ce_apg_from:
-                    run = import_ce_apg(task, seed, args.ce_apg_from)
+                    run = import_ce_apg(task, seed, args.ce_apg_from, args.bodies)
                     if run is None:
                         print(f"{task:16s} {LABELS[algo]:9s} seed {seed}: no result in {args.ce_apg_from}, skipped")
                         continue
@@ -393,7 +405,7 @@ def main(argv=None):
                     continue
                 else:
                     print(f"{task:16s} {LABELS[algo]:9s} seed {seed} ...", flush=True)
-                    run = train_one(algo, task, seed, budget_for(budgets, algo, task), budget_name)
+                    run = train_one(algo, task, seed, budget_for(budgets, algo, task), budget_name, args.bodies)
                 write_json(path, run)
                 if run.get("failed"):
                     print(f"{task:16s} {LABELS[algo]:9s} seed {seed}: FAILED {run['failed']}", flush=True)
@@ -402,6 +414,7 @@ def main(argv=None):
                           f"{run['balanced']}, {run['env_steps']:.2e} steps, {run['wall_clock']:.0f} s", flush=True)
     runs = load_runs(runs_dir)
     results = {"meta": {"budget": budget_name, "quick": budget_name == "quick",
+                        **({} if args.bodies == "rods" else {"bodies": args.bodies}),
                         "seeds": sorted({r["seed"] for a in runs.values() for rs in a.values() for r in rs}),
                         "budgets": {a: budgets[a] for a in ALGORITHMS},
                         "cuts": LAPTOP_CUTS if budget_name == "laptop" else {},
@@ -415,7 +428,8 @@ def main(argv=None):
 def write_outputs(results, out, tag):
     write_table(results, os.path.join(out, f"{tag}.md"))
     for name in results["runs"]:
-        plot_task(name, results["runs"][name], os.path.join(out, f"{tag}_{name}.png"), _budget_name(results))
+        plot_task(name, results["runs"][name], os.path.join(out, f"{tag}_{name}.png"), _budget_name(results),
+                  results["meta"].get("bodies", "rods"))
     return results
 
 
@@ -429,6 +443,12 @@ def _cpu_share(runs):
     return f"{np.mean(shares):.2f}" if shares else "-"
 
 
+def _bodies_sentence(results):
+    bodies = results["meta"].get("bodies", "rods")
+    return "" if bodies == "rods" else (f" Every run on the tasks' `{bodies}` bodies (`lagrange.tasks.make_task`), "
+                                        "not this library's rods.")
+
+
 def write_table(results, path):
     budget = _budget_name(results)
     what = {"quick": "QUICK smoke-scale budgets", "laptop": "LAPTOP budgets, cut from the paper's where noted",
@@ -438,7 +458,8 @@ def write_table(results, path):
              "balanced seeds = fraction of seeds whose every evaluation episode does; CPU share = process CPU "
              f"seconds / wall-clock seconds ({results['meta'].get('cpus')} cores, shared with other jobs: the "
              "wall-clock is inflated where it is below the cores' count); paper = CE-APG paper Table I "
-             "(8 seeds, its own Brax v1 environments).", "",
+             "(8 seeds, its own Brax v1 environments)."
+             + _bodies_sentence(results), "",
              "| task | algorithm | return | seeds | balanced episodes | balanced seeds | env steps | "
              "wall-clock [s] | CPU share | paper |",
              "|---|---|---|---|---|---|---|---|---|---|"]
@@ -491,7 +512,7 @@ def write_table(results, path):
     print("\n".join(lines))
 
 
-def plot_task(name, algos, path, budget):
+def plot_task(name, algos, path, budget, bodies="rods"):
     quick = budget == "quick"
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for algo, runs in algos.items():
@@ -524,7 +545,7 @@ def plot_task(name, algos, path, budget):
         ax.legend(fontsize=8, loc="lower right")
     note = {"quick": " (QUICK smoke-scale budgets, not a comparison)",
             "laptop": " (LAPTOP budgets; dotted: paper Table I)", "full": " (dotted: paper Table I)"}[budget]
-    fig.suptitle(f"{name}{note}")
+    fig.suptitle(f"{name}{'' if bodies == 'rods' else f' on the {bodies} bodies'}{note}")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

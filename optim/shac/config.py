@@ -9,16 +9,22 @@ import jax.numpy as jnp
 import numpy as np
 
 from lagrange.shac_cartpole import shac_cartpole
-from lagrange.tasks import TASKS
+from lagrange.tasks import BODIES, TASKS
+from lagrange.tasks import make_task as make_paper_task
 
 
 TASKS_SHAC: dict[str, Callable] = {**TASKS, "shac_cartpole": shac_cartpole}
 """The tasks SHAC is configured for by name: the CE-APG paper's three and the SHAC authors' cartpole."""
 
 
-def make_task(name: str):
+def make_task(name: str, bodies: str = "rods"):
+    """The task ``name`` (one of :data:`TASKS_SHAC`); a paper task on ``bodies`` (:func:`lagrange.tasks.make_task`)."""
     if name not in TASKS_SHAC:
         raise ValueError(f"task must be one of {sorted(TASKS_SHAC)}, got {name!r}")
+    if name in TASKS:
+        return make_paper_task(name, bodies)
+    if bodies != "rods":
+        raise ValueError(f"bodies={bodies!r} is for the paper tasks {sorted(TASKS)}; {name!r} has its own bodies")
     return TASKS_SHAC[name]()
 
 
@@ -64,6 +70,8 @@ class SHACConfig:
     actor_units, critic_units: hidden widths of the ELU + LayerNorm MLPs [(64, 64), (64, 64)].
     init_log_std: initial state-independent log-std of the actor [actor_logstd_init = -1].
     normalize: running observation mean/std normalisation [obs_rms = True].
+    bodies: "rods" (this library's) or "brax_v1" (the CE-APG authors' Brax v1 bodies) for a paper task
+      (:func:`lagrange.tasks.make_task`); other tasks bring their own bodies (leave "rods").
     """
 
     task: str = "shac_cartpole"
@@ -88,11 +96,17 @@ class SHACConfig:
     critic_units: tuple[int, ...] = (64, 64)
     init_log_std: float = -1.0
     normalize: bool = True
+    bodies: str = "rods"
 
     def __post_init__(self):
         if self.task not in TASKS_SHAC and self.task != "custom":
             raise ValueError(f"SHACConfig.task must be one of {sorted(TASKS_SHAC)} (or 'custom' with a task passed "
                              f"to make_trainer), got {self.task!r}")
+        if self.bodies not in BODIES:
+            raise ValueError(f"SHACConfig.bodies must be one of {list(BODIES)}, got {self.bodies!r}")
+        if self.bodies != "rods" and self.task not in TASKS:
+            raise ValueError(f"SHACConfig.bodies={self.bodies!r} is for the paper tasks {sorted(TASKS)}; "
+                             f"task {self.task!r} brings its own bodies (leave bodies='rods')")
         if self.horizon is not None:
             _int("horizon", self.horizon, 1)
         _int("num_envs", self.num_envs, 1)

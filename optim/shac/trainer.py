@@ -48,7 +48,7 @@ def _build_task(config: SHACConfig, task):
     if task is None:
         if config.task == "custom":
             raise ValueError("SHACConfig.task is 'custom': pass the task to make_trainer(config, task)")
-        task = make_task(config.task)
+        task = make_task(config.task, config.bodies)
     if config.horizon is not None and config.horizon != task.horizon:
         task = dataclasses.replace(task, horizon=config.horizon)
     return task
