@@ -68,6 +68,9 @@ class CEAPGConfig(InnerAPGConfig):
         hanging, a curriculum that shows every candidate the balance it must end in [0]. Fitness
         counts those episodes too; ``Trainer.task`` (what the examples evaluate) keeps the paper's
         hanging start.
+      train_noise: half-width of the uniform noise on the angles and velocities at the start of every *training*
+        episode (warm-up stages included), None = the task's own (+-0.01) [None]. Wider training starts are a
+        robustness knob; ``Trainer.task`` (what the examples and benchmarks evaluate) keeps the task's noise.
       warmup_horizons, warmup_iterations, warmup_upright: a curriculum of training-episode lengths
         [not in the paper; none]. The first ``len(warmup_horizons) * warmup_iterations`` of the ``iterations`` train
         and score candidates on episodes of ``warmup_horizons[0]``, then ``[1]``, ... control steps
@@ -85,6 +88,7 @@ class CEAPGConfig(InnerAPGConfig):
     num_elites: int = 8
     init_std: float = 0.05
     upright_starts: float = 0.0
+    train_noise: float | None = None
     warmup_horizons: tuple[int, ...] = ()
     warmup_iterations: int = 15
     warmup_upright: float = 1.0
@@ -101,6 +105,8 @@ class CEAPGConfig(InnerAPGConfig):
                 f"{c}.num_elites must be <= num_candidates ({self.num_candidates}), got {self.num_elites}")
         _check_pos(c, "init_std", self.init_std, allow_zero=True)
         _check_probability(c, "upright_starts", self.upright_starts)
+        if self.train_noise is not None:
+            _check_pos(c, "train_noise", self.train_noise, allow_zero=True)
         if isinstance(self.warmup_horizons, (str, bytes)) or not hasattr(self.warmup_horizons, "__iter__"):
             raise ValueError(f"{c}.warmup_horizons must be a sequence of integers >= 1, got {self.warmup_horizons!r}")
         object.__setattr__(self, "warmup_horizons", tuple(self.warmup_horizons))
@@ -193,9 +199,10 @@ def make_trainer(config: CEAPGConfig, task=None) -> Trainer:
     """Init/update pair for the host loop; ``update`` runs one jitted CE iteration."""
     task = build_task(config, task)
     # episodes the candidates train and are scored on, one task per curriculum stage (the warm-up horizons, then
-    # the full one with upright_starts); `task` is what the trainer evaluates
-    train_task = dataclasses.replace(task, upright=config.upright_starts) if config.upright_starts else task
-    stage_tasks = [dataclasses.replace(task, horizon=h, upright=config.warmup_upright) for h in config.warmup_horizons]
+    # the full one with upright_starts), all with train_noise; `task` is what the trainer evaluates
+    noisy = task if config.train_noise is None else dataclasses.replace(task, noise=float(config.train_noise))
+    train_task = dataclasses.replace(noisy, upright=config.upright_starts) if config.upright_starts else noisy
+    stage_tasks = [dataclasses.replace(noisy, horizon=h, upright=config.warmup_upright) for h in config.warmup_horizons]
     stage_tasks.append(train_task)
     stage_horizons = jnp.asarray([t.horizon for t in stage_tasks], jnp.float32)
     stage_steps = jnp.asarray([config.env_steps_per_iteration(i * config.warmup_iterations)

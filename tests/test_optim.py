@@ -38,6 +38,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
         (lambda: ce_apg.CEAPGConfig(policy="transformer"), "policy"),
         (lambda: ce_apg.CEAPGConfig(upright_starts=1.5), "upright_starts"),
         (lambda: ce_apg.CEAPGConfig(upright_starts=-0.1), "upright_starts"),
+        (lambda: ce_apg.CEAPGConfig(train_noise=-0.1), "CEAPGConfig.train_noise must be a finite number >= 0"),
+        (lambda: ce_apg.CEAPGConfig(train_noise=float("inf")), "train_noise"),
         (lambda: ce_apg.CEAPGConfig(warmup_horizons=(100, 0)), r"warmup_horizons\[1\]"),
         (lambda: ce_apg.CEAPGConfig(warmup_horizons="100"), "warmup_horizons"),
         (lambda: ce_apg.CEAPGConfig(warmup_horizons=(100,), warmup_iterations=0), "warmup_iterations"),
@@ -202,6 +204,26 @@ def test_upright_starts_train_on_balanced_starts_and_evaluate_hanging():
     # hanging within ~0.011 rad of straight down (reset noise 0.01 on angle and speed): at most 20 (10 - (pi - 0.011)^2)
     assert fitness[0.0] <= 20 * (10 - (np.pi - 0.011) ** 2)
     assert fitness[1.0] > 190  # of 200 for a perfect hold; measured 199.9 (a 0.01 rad tilt grows e^3.8t, ~0.4 rad at 1 s)
+
+
+def test_train_noise_widens_the_training_starts_and_evaluates_the_task():
+    """``train_noise`` changes the starts candidates are scored on, never the task the trainer evaluates. With a
+    zero policy (no torque) a pendulum started exactly hanging and at rest stays there: 10 - pi^2 per step; the
+    task's own +-0.01 is the default (``None``), bit for bit."""
+    task = chain_swingup(lg.systems.pendulum(gear=5.0), dt=0.05, horizon=20)
+    fitness = {}
+    for noise in (None, 0.01, 0.0, 0.5):
+        cfg = ce_apg.CEAPGConfig(task="custom", num_candidates=2, num_elites=1, iterations=1, apg_steps=0,
+                                 episodes=2, horizon=20, width=4, init_std=0.0, train_noise=noise)
+        trainer = ce_apg.make_trainer(cfg, task)
+        assert trainer.task.noise == 0.01  # evaluation keeps the task's noise
+        _, metrics = trainer.update(trainer.init(jax.random.PRNGKey(0)))
+        fitness[noise] = float(metrics["best_return"])
+    assert fitness[0.01] == fitness[None]
+    np.testing.assert_allclose(fitness[0.0], 20 * (10 - np.pi ** 2), rtol=1e-5)
+    assert fitness[None] != fitness[0.0]
+    # starts up to 0.5 rad and 0.5 rad/s off hanging swing nearer upright: measured 36.2 against 3.3
+    assert fitness[0.5] > fitness[None] + 5
 
 
 def test_warmup_horizons_schedule_the_training_episodes(tmp_path):
