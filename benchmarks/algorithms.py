@@ -279,10 +279,15 @@ def _run_path(runs_dir, algo, task, seed):
     return os.path.join(runs_dir, f"{algo}_{task}_{seed}.json")
 
 
+def _bodies_marker(bodies):
+    """``{"bodies": bodies}`` for a result on other bodies than the rods, whose result files stay as they were."""
+    return {} if bodies == "rods" else {"bodies": bodies}
+
+
 def train_one(algo, task, seed, budget, budget_name, bodies="rods"):
     """Train and evaluate one (algorithm, task on ``bodies``, seed); returns the run's result dict."""
     load0, cpu0, t0 = os.getloadavg(), time.process_time(), time.perf_counter()
-    marker = {} if bodies == "rods" else {"bodies": bodies}  # rods run files stay as they were
+    marker = _bodies_marker(bodies)
     try:
         rets, bal, curve, steps, wall = RUNNERS[algo](task, seed, budget, bodies)
     except Diverged as e:  # recorded as a failed seed, not retried
@@ -327,7 +332,7 @@ def import_ce_apg(task, seed, src_dir, bodies="rods"):
             "return": float(r["return"]), "returns": None, "balanced_fraction": r.get("balanced_fraction"),
             "balanced": bool(r["balanced"]), "env_steps": float(r["env_steps"]),
             "wall_clock": float(r["wall_clock_seconds"]), "cpu_seconds": None, "config": r.get("config"),
-            "curve": curve, "curve_kind": kind, **({} if bodies == "rods" else {"bodies": bodies})}
+            "curve": curve, "curve_kind": kind, **_bodies_marker(bodies)}
 
 
 def restore_runs(json_path, runs_dir):
@@ -414,7 +419,7 @@ def main(argv=None):
                           f"{run['balanced']}, {run['env_steps']:.2e} steps, {run['wall_clock']:.0f} s", flush=True)
     runs = load_runs(runs_dir)
     results = {"meta": {"budget": budget_name, "quick": budget_name == "quick",
-                        **({} if args.bodies == "rods" else {"bodies": args.bodies}),
+                        **_bodies_marker(args.bodies),
                         "seeds": sorted({r["seed"] for a in runs.values() for rs in a.values() for r in rs}),
                         "budgets": {a: budgets[a] for a in ALGORITHMS},
                         "cuts": LAPTOP_CUTS if budget_name == "laptop" else {},
