@@ -42,6 +42,12 @@ def bodies_suffix(bodies: str) -> str:
     return "" if bodies == "rods" else f"_{bodies}"
 
 
+def bodies_marker(bodies: str) -> dict:
+    """``{}`` for the rods, else ``{"bodies": bodies}``: marks a result dict on other bodies, so the rods' result
+    files stay as they were."""
+    return {} if bodies == "rods" else {"bodies": bodies}
+
+
 def runs_result_path(out: str | None, results, stem: str, runs: str) -> str:
     """``out``, or ``results/<stem>_<name of the runs folder>.json``."""
     return out or os.path.join(results, f"{stem}_{os.path.basename(os.path.normpath(runs))}.json")

@@ -62,7 +62,7 @@ import jax.numpy as jnp  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from benchmarks._cli import add_bodies_flag, bodies_suffix  # noqa: E402
+from benchmarks._cli import add_bodies_flag, bodies_marker, bodies_suffix  # noqa: E402
 from benchmarks._files import write_json, write_text  # noqa: E402
 from lagrange.tasks import balanced, make_task  # noqa: E402
 from optim import ce_apg, shac  # noqa: E402
@@ -279,15 +279,10 @@ def _run_path(runs_dir, algo, task, seed):
     return os.path.join(runs_dir, f"{algo}_{task}_{seed}.json")
 
 
-def _bodies_marker(bodies):
-    """``{"bodies": bodies}`` for a result on other bodies than the rods, whose result files stay as they were."""
-    return {} if bodies == "rods" else {"bodies": bodies}
-
-
 def train_one(algo, task, seed, budget, budget_name, bodies="rods"):
     """Train and evaluate one (algorithm, task on ``bodies``, seed); returns the run's result dict."""
     load0, cpu0, t0 = os.getloadavg(), time.process_time(), time.perf_counter()
-    marker = _bodies_marker(bodies)
+    marker = bodies_marker(bodies)
     try:
         rets, bal, curve, steps, wall = RUNNERS[algo](task, seed, budget, bodies)
     except Diverged as e:  # recorded as a failed seed, not retried
@@ -332,7 +327,7 @@ def import_ce_apg(task, seed, src_dir, bodies="rods"):
             "return": float(r["return"]), "returns": None, "balanced_fraction": r.get("balanced_fraction"),
             "balanced": bool(r["balanced"]), "env_steps": float(r["env_steps"]),
             "wall_clock": float(r["wall_clock_seconds"]), "cpu_seconds": None, "config": r.get("config"),
-            "curve": curve, "curve_kind": kind, **_bodies_marker(bodies)}
+            "curve": curve, "curve_kind": kind, **bodies_marker(bodies)}
 
 
 def restore_runs(json_path, runs_dir):
@@ -388,8 +383,9 @@ def main(argv=None):
     if any(s < 0 for s in seeds):
         raise SystemExit(f"--seeds must be >= 0, got {seeds}")
     budgets = BUDGETS[budget_name]
-    tag = TAGS[budget_name] + bodies_suffix(args.bodies)
-    runs_dir = os.path.join(args.runs_dir, budget_name + bodies_suffix(args.bodies))
+    suffix = bodies_suffix(args.bodies)
+    tag = TAGS[budget_name] + suffix
+    runs_dir = os.path.join(args.runs_dir, budget_name + suffix)
     os.makedirs(args.out, exist_ok=True)
     os.makedirs(runs_dir, exist_ok=True)
     json_path = os.path.join(args.out, f"{tag}.json")
@@ -419,7 +415,7 @@ def main(argv=None):
                           f"{run['balanced']}, {run['env_steps']:.2e} steps, {run['wall_clock']:.0f} s", flush=True)
     runs = load_runs(runs_dir)
     results = {"meta": {"budget": budget_name, "quick": budget_name == "quick",
-                        **_bodies_marker(args.bodies),
+                        **bodies_marker(args.bodies),
                         "seeds": sorted({r["seed"] for a in runs.values() for rs in a.values() for r in rs}),
                         "budgets": {a: budgets[a] for a in ALGORITHMS},
                         "cuts": LAPTOP_CUTS if budget_name == "laptop" else {},

@@ -36,7 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from benchmarks._ascent import adam_best_seen
-from benchmarks._cli import add_bodies_flag, at_least, bodies_suffix
+from benchmarks._cli import add_bodies_flag, at_least, bodies_marker, bodies_suffix
 from benchmarks._files import write_json
 from benchmarks.refine_swingup import arrival
 from benchmarks.upright_basin import linearise, lqr_gain, upright_state
@@ -224,7 +224,7 @@ def main(argv=None):
                   flush=True)
     held = [r for r in rows if r["balanced"] and r["balanced_float64"]]
     best = max(held, key=lambda r: r["return"]) if held else None
-    out = {"task": args.task, **({"bodies": args.bodies} if args.bodies != "rods" else {}), "horizon": task.horizon,
+    out = {"task": args.task, **bodies_marker(args.bodies), "horizon": task.horizon,
            "knots": knots, "population": args.population, "elites": args.elites, "iterations": iterations,
            "refine_steps": refine_steps, "learning_rate": lr,
            "lqr_r": args.r, "lqr_gain": np.asarray(K).tolist(),

@@ -28,7 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.linalg
 
-from benchmarks._cli import add_bodies_flag, bodies_suffix
+from benchmarks._cli import add_bodies_flag, bodies_marker, bodies_suffix
 from benchmarks._files import write_json
 from lagrange.tasks import TASKS, TaskState, make_task, wrap
 
@@ -137,7 +137,7 @@ def main(argv=None):
                           for j, v in row["joints"].items())
         print(f"{args.task} R = {r:g}: closed-loop spectral radius {row['closed_loop_spectral_radius']:.4f}; "
               f"largest lean recovered from rest: {leans}", flush=True)
-    out = {"task": args.task, **({"bodies": args.bodies} if args.bodies != "rods" else {}), "dt": task.dt,
+    out = {"task": args.task, **bodies_marker(args.bodies), "dt": task.dt,
            "gear": np.asarray(task.chain.gear).tolist(), "steps": args.steps, "leans": list(LEANS), "rows": rows}
     path = args.out or str(RESULTS / f"upright_basin_{args.task}{bodies_suffix(args.bodies)}.json")
     write_json(path, out)

@@ -20,7 +20,7 @@ import pytest
 
 import lagrange as lg
 from lagrange.shac_cartpole import POLE_INERTIA, shac_cartpole
-from lagrange.tasks import TaskState, balanced, chain_swingup, upright_error
+from lagrange.tasks import TaskState, balanced, chain_swingup, make_task, upright_error
 from optim import shac
 
 # ---------------------------------------------------------------------------------------------
@@ -171,8 +171,6 @@ def test_config_errors_name_the_field():
 def test_bodies_field_builds_the_brax_v1_task():
     """``SHACConfig.bodies`` reaches the trainer's task, as ``CEAPGConfig.bodies`` does (benchmarks/algorithms.py
     --bodies trains SHAC on the authors' Brax v1 acrobot through it)."""
-    from lagrange.tasks import make_task
-
     cfg = dict(num_envs=4, short_horizon=4, epochs=2, critic_iterations=1, critic_minibatches=1)
     rods = shac.make_trainer(shac.SHACConfig(task="acrobot", **cfg)).task
     brax = shac.make_trainer(shac.SHACConfig(task="acrobot", bodies="brax_v1", **cfg)).task
