@@ -139,18 +139,18 @@ def refine(episode, z, s0, *, steps: int, learning_rate: float):
     return z, float(best)
 
 
-def rerun_float64(task, K, T: int, z, bodies: str = "rods") -> tuple[float, bool]:
+def rerun_float64(task, K, T: int, z) -> tuple[float, bool]:
     """The controller's noise-free episode re-run in float64: ``(return, balanced)``. A swing-up that arrives at the
     edge of the LQR's basin can depend on round-off; one that holds in both precisions does not."""
     with jax.enable_x64(True):
-        task = make_task(task.kind, bodies)  # rebuilt inside the context: float64 parameters
+        task = make_task(task.kind, task.bodies)  # rebuilt inside the context: float64 parameters
         episode = make_controller(task, K, T)
         ret, states, _, _ = jax.jit(episode)(jnp.asarray(z, jnp.float64), hanging(task))
         return float(ret), bool(balanced(task, states.q))
 
 
 def one(task, K, T: int, seed: int, *, knots: int, population: int, elites: int, iterations: int,
-        refine_steps: int, learning_rate: float, bodies: str = "rods") -> dict:
+        refine_steps: int, learning_rate: float) -> dict:
     t0 = time.perf_counter()
     dtype = jnp.result_type(task.chain.mass)
     episode = make_controller(task, K, T)
@@ -161,7 +161,7 @@ def one(task, K, T: int, seed: int, *, knots: int, population: int, elites: int,
     z, seen = refine(episode, knots_to_offsets(c, T, task.horizon), s0, steps=refine_steps, learning_rate=learning_rate)
     ret, states, actions, rewards = jax.jit(episode)(z, s0)
     q = states.q
-    ret64, balanced64 = rerun_float64(task, K, T, z, bodies)
+    ret64, balanced64 = rerun_float64(task, K, T, z)
     starts = jax.vmap(task.reset)(jax.random.split(jax.random.PRNGKey(10_000), EVAL_EPISODES))
     noisy_ret, noisy, _, _ = jax.jit(jax.vmap(lambda s: episode(z, s)))(starts)
     return {
@@ -215,7 +215,7 @@ def main(argv=None):
     for T in times:
         for seed in seeds:
             r = one(task, K, T, seed, knots=knots, population=args.population, elites=args.elites,
-                    iterations=iterations, refine_steps=refine_steps, learning_rate=lr, bodies=args.bodies)
+                    iterations=iterations, refine_steps=refine_steps, learning_rate=lr)
             rows.append(r)
             print(f"T = {T} ({T * task.dt:.2f} s), seed {seed}: CEM {r['cem_return']:.1f} -> refined "
                   f"{r['return']:.1f} ({'balanced' if r['balanced'] else 'not balanced'}; float64 {r['return_float64']:.1f}, "

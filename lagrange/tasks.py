@@ -61,6 +61,7 @@ at the same cost are off by tenths of a radian.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import NamedTuple
 
 import equinox as eqx
@@ -105,7 +106,8 @@ class Task(eqx.Module):
     :func:`chain_swingup`). ``cart`` says whether ``q[0]`` is a prismatic cart coordinate.
     ``trig=True`` (not the paper's, except for the double cartpole where it is the default layout)
     observes ``(x, sin th, cos th, dx, dth)`` instead of the wrapped angles, which jump by 2 pi as a
-    pole swings through hanging.
+    pole swings through hanging. ``bodies`` records which bodies :func:`make_task` built a paper task on ("rods" or
+    "brax_v1"); None for a task built any other way (a custom chain, or :func:`acrobot` etc. with chain keywords).
     """
 
     chain: Chain
@@ -118,10 +120,13 @@ class Task(eqx.Module):
     upright: float = eqx.field(static=True, default=0.0)
     trig: bool = eqx.field(static=True, default=False)
     starts: jax.Array | None = None
+    bodies: str | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         if not 0 <= float(self.upright) <= 1:
             raise ValueError(f"Task.upright must be a probability in [0, 1], got {self.upright!r}")
+        if self.bodies is not None and self.bodies not in BODIES:
+            raise ValueError(f"Task.bodies must be None or one of {list(BODIES)}, got {self.bodies!r}")
         if self.starts is not None and not isinstance(self.starts, jax.core.Tracer):
             shape, want = np.shape(self.starts), 2 * self.chain.n
             if len(shape) != 2 or shape[0] < 1 or shape[1] != want:
@@ -260,7 +265,8 @@ def make_task(name: str, bodies: str = "rods") -> Task:
         raise ValueError(f"task must be one of {sorted(TASKS)}, got {name!r}")
     if bodies not in BODIES:
         raise ValueError(f"bodies must be one of {list(BODIES)}, got {bodies!r}")
-    return TASKS[name]() if bodies == "rods" else TASKS[name](**systems.BRAX_V1[name])
+    task = TASKS[name]() if bodies == "rods" else TASKS[name](**systems.BRAX_V1[name])
+    return dataclasses.replace(task, bodies=bodies)
 
 
 def balanced(task: Task, q, *, fraction: float = 0.2, tolerance: float = 0.2):

@@ -55,6 +55,22 @@ def test_the_reported_actions_are_the_ones_applied():
     np.testing.assert_allclose(np.asarray(rewards), np.asarray(r), atol=1e-12)
 
 
+def test_the_float64_rerun_keeps_the_tasks_bodies():
+    """``rerun_float64`` rebuilds the task in float64 on the bodies the task records (``Task.bodies``), so a Brax v1
+    controller is re-checked on the Brax v1 chain: its return equals the same episode run directly in float64."""
+    z = 0.5 * jax.random.normal(jax.random.PRNGKey(3), (500,))
+    got = {}
+    for bodies in tasks.BODIES:
+        task = tasks.make_task("acrobot", bodies)
+        K = gain(task)
+        got[bodies], _ = sl.rerun_float64(task, K, 40, z)
+        with jax.enable_x64(True):
+            task64 = tasks.make_task("acrobot", bodies)
+            want, _, _, _ = jax.jit(sl.make_controller(task64, K, 40))(jnp.asarray(z, jnp.float64), sl.hanging(task64))
+        assert got[bodies] == float(want)
+    assert got["rods"] != got["brax_v1"]
+
+
 def test_knots_to_offsets():
     z = sl.knots_to_offsets(jnp.array([1.0, -1.0, 3.0]), 5, 8)
     np.testing.assert_allclose(np.asarray(z), [1.0, 0.0, -1.0, 1.0, 3.0, 0.0, 0.0, 0.0])
