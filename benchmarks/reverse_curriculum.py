@@ -2,6 +2,7 @@
 
     python -m benchmarks.reverse_curriculum              # double cartpole, seed 0 (up to an hour on two cores)
     python -m benchmarks.reverse_curriculum --quick      # a smoke run of the same stages, tiny population
+    python -m benchmarks.reverse_curriculum --task acrobot --bodies brax_v1   # along swingup_lqr_acrobot_brax_v1.json
 
 CE-APG's double-cartpole policies spin (README); ``benchmarks/swingup_lqr.py`` found a balanced swing-up worth 4396
 (an open-loop swing-up caught by LQR). This script asks whether the learner can follow it backwards. The states
@@ -25,7 +26,9 @@ plus every state from the frontier to ``--last`` (so the catch learnt earlier ke
 is log-linear over the stages of a run without roll-backs (then ``lr_end``). After every stage the best candidate is
 evaluated (16 deterministic episodes each) from the frontier state ``X[lo]`` (+-0.01), from upright, and from the 16
 hanging starts of the paper tables. ``held_back_to`` is the last frontier kept. Writes
-``benchmarks/results/reverse_curriculum_<task>.json`` and the final CE state to ``--checkpoint``.
+``benchmarks/results/reverse_curriculum_<task>.json`` (``..._<task>_brax_v1.json`` for ``--bodies brax_v1``, which
+follows the Brax v1 bodies' controller, ``swingup_lqr_<task>_brax_v1.json``) and the final CE state to
+``--checkpoint``.
 """
 
 from __future__ import annotations
@@ -41,7 +44,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from benchmarks._cli import at_least
+from benchmarks._cli import add_bodies_flag, at_least, bodies_marker, bodies_suffix
 from benchmarks._files import write_json
 from benchmarks.swingup_lqr import replay, results_path
 from lagrange.tasks import make_task
@@ -55,7 +58,10 @@ EVAL_EPISODES = 16  # as benchmarks/paper_tables.py
 
 def controller_states(task, controller: dict):
     """The states ``(H+1, 2n)`` (q then qd) of a ``swingup_lqr`` result's best controller, from the noise-free
-    hanging start, and its return."""
+    hanging start, and its return. Exits if the result was found on other bodies than ``task``'s."""
+    if controller.get("bodies", "rods") != (task.bodies or "rods"):
+        raise SystemExit(f"the swingup_lqr result was found on the {controller.get('bodies', 'rods')!r} bodies, the "
+                         f"task is on {task.bodies!r} (--bodies)")
     best = controller.get("best")
     if not best:
         raise SystemExit("the swingup_lqr result file holds no balanced controller ('best' is empty)")
@@ -130,6 +136,7 @@ def main(argv=None):
                    "default runs/reverse_curriculum/ce_apg_<task>_<seed>.eqx)")
     p.add_argument("--out", default=None,
                    help="result file (default benchmarks/results/reverse_curriculum_<task>.json)")
+    add_bodies_flag(p)
     args = p.parse_args(argv)
     at_least(first=(args.first, 1), move=(args.move, 1), per_stage=(args.per_stage, 1), tail=(args.tail, 0),
              frontier_weight=(args.frontier_weight, 1), max_stages=(args.max_stages, 0), held=(args.held, 0))
@@ -138,10 +145,13 @@ def main(argv=None):
     if args.last <= args.first:
         raise SystemExit(f"--last must be > --first ({args.first}), got {args.last}")
     use_cpu_cores(args.cpu_devices or cpu_core_count())
-    task = make_task(args.task)
+    task = make_task(args.task, args.bodies)
     if args.last > task.horizon:
         raise SystemExit(f"--last must be <= the task's horizon {task.horizon}, got {args.last}")
-    controller_path = results_path(args.task, args.controller)
+    controller_path = results_path(args.task, args.controller, args.bodies)
+    if not os.path.exists(controller_path):
+        raise SystemExit(f"{controller_path} does not exist (--controller): run benchmarks/swingup_lqr.py --task "
+                         f"{args.task} --bodies {args.bodies} first")
     with open(controller_path) as f:
         X, expert_return = controller_states(task, json.load(f))
     first, move, per_stage, horizons, tail, max_stages = (args.first, args.move, args.per_stage, args.horizons,
@@ -152,7 +162,7 @@ def main(argv=None):
         overrides.update(num_candidates=4, num_elites=2, apg_steps=2, episodes=1, fitness_window=1)
     warm = warmup(first, horizons, per_stage, task.horizon)
     planned = len(warm) * per_stage + -(-first // move) * per_stage + tail  # the learning-rate schedule's length
-    cfg = ce_apg.CEAPGConfig.laptop(args.task, iterations=planned, **overrides)
+    cfg = ce_apg.CEAPGConfig.laptop(args.task, iterations=planned, bodies=args.bodies, **overrides)
     eval_key = jax.random.PRNGKey(10_000 + args.seed)  # the paper tables' evaluation starts
     print(f"{args.task}: controller return {expert_return:.1f}; the learning rate decays over {planned} iterations",
           flush=True)
@@ -183,15 +193,16 @@ def main(argv=None):
         run["rows"].append(row)
         return state, row
 
-    path = args.out or str(RESULTS / f"reverse_curriculum_{args.task}.json")
-    ckpt = args.checkpoint or os.path.join("runs", "reverse_curriculum", f"ce_apg_{args.task}_{args.seed}.eqx")
+    suffix = bodies_suffix(args.bodies)
+    path = args.out or str(RESULTS / f"reverse_curriculum_{args.task}{suffix}.json")
+    ckpt = args.checkpoint or os.path.join("runs", "reverse_curriculum", f"ce_apg_{args.task}{suffix}_{args.seed}.eqx")
     os.makedirs(os.path.dirname(os.path.abspath(ckpt)), exist_ok=True)
 
     def save(held, finished: bool) -> dict:
         """The results so far and the kept CE state, both written atomically after every stage."""
         rows = run["rows"]
         final = [r for r in rows if r.get("kept", True)][-1]  # the evaluation of the kept state
-        out = {"task": args.task, "seed": args.seed, "controller": controller_path, "controller_return": expert_return,
+        out = {"task": args.task, **bodies_marker(args.bodies), "seed": args.seed, "controller": controller_path, "controller_return": expert_return,
                "first": first, "last": args.last, "move": move, "per_stage": per_stage, "horizons": horizons,
                "frontier_weight": args.frontier_weight, "tail": tail, "max_stages": max_stages, "held": args.held,
                "quick": args.quick, "config": dataclasses.asdict(cfg), "finished": finished, "held_back_to": held,

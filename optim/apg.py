@@ -123,9 +123,10 @@ def build_task(cfg, task: Task | None = None) -> Task:
         if cfg.task == "custom":
             raise ValueError(f"{type(cfg).__name__}.task is 'custom': pass the Task to make_trainer(config, task)")
         task = make_task(cfg.task, cfg.bodies)
-    elif cfg.bodies != "rods":
+    elif cfg.bodies != "rods" and task.bodies != cfg.bodies:
         raise ValueError(f"{type(cfg).__name__}.bodies={cfg.bodies!r} names the bodies of a paper task; a task "
-                         f"passed to make_trainer brings its own chain (leave bodies='rods')")
+                         f"passed to make_trainer brings its own chain (leave bodies='rods', or pass a task "
+                         f"make_task built on {cfg.bodies!r}), got a task with bodies={task.bodies!r}")
     if getattr(cfg, "trig_observation", False) and not task.trig:  # a given task too, not silently ignored
         task = dataclasses.replace(task, trig=True)
     if cfg.horizon != task.horizon:

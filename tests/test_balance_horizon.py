@@ -28,3 +28,11 @@ def test_config_trains_upright_only():
     cur = bh.config("acrobot", 500, 60, warmup=(100, 200))
     assert (cur.warmup_horizons, cur.warmup_iterations, cur.warmup_upright) == ((100, 200), 20, 1.0)
     assert [cur.training_horizon(i) for i in (0, 20, 40)] == [100, 200, 500]
+
+
+def test_bodies_reach_the_config_and_the_results_file():
+    """``--bodies brax_v1`` trains on the authors' Brax v1 bodies and writes its own results file beside the rods'."""
+    assert bh.config("acrobot", 100, 60).bodies == "rods"
+    assert bh.config("acrobot", 100, 60, bodies="brax_v1").bodies == "brax_v1"
+    assert bh.results_path("acrobot").name == "balance_horizon_acrobot.json"
+    assert bh.results_path("acrobot", "brax_v1").name == "balance_horizon_acrobot_brax_v1.json"

@@ -69,6 +69,13 @@ def test_bodies_field_builds_the_brax_v1_task():
         for field in ("mass", "length", "com", "inertia"):
             np.testing.assert_array_equal(getattr(task.chain, field), getattr(want, field))
     assert not np.allclose(brax.chain.inertia, rods.chain.inertia)
+    # a task passed to make_trainer may carry the config's bodies (a Brax v1 task with its own starts); a task on
+    # other bodies is refused, naming the field
+    cfg = ce_apg.CEAPGConfig.laptop("acrobot", bodies="brax_v1")
+    given = dataclasses.replace(lg_tasks.make_task("acrobot", "brax_v1"), upright=1.0)
+    assert apg.build_task(cfg, given).upright == 1.0
+    with pytest.raises(ValueError, match=r"CEAPGConfig.bodies='brax_v1'.*got a task with bodies='rods'"):
+        apg.build_task(cfg, lg_tasks.make_task("acrobot"))
 
 
 def test_paper_presets():

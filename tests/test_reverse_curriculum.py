@@ -52,6 +52,8 @@ def test_controller_states_replay_the_saved_controller():
     assert bool(tasks.balanced(task, X[:, :task.chain.n]))
     with pytest.raises(SystemExit, match="no balanced controller"):
         rc.controller_states(task, {**d, "best": None})
+    with pytest.raises(SystemExit, match="found on the 'rods' bodies, the task is on 'brax_v1'"):
+        rc.controller_states(tasks.make_task("double_cartpole", "brax_v1"), d)
 
 
 def test_quick_run_writes_every_stage(tmp_path):
@@ -147,7 +149,10 @@ def test_stage_evaluation_counts_balanced_episodes_from_each_place():
 
 @pytest.mark.parametrize("argv, flag", [(["--move", "0"], "--move"), (["--last", "100"], "--last"),
                                         (["--last", "900"], "--last"), (["--per-stage", "0"], "--per-stage"),
-                                        (["--held", "17"], "--held")])
+                                        (["--held", "17"], "--held"),
+                                        # no double-cartpole controller on the Brax v1 bodies: --bodies picks the file
+                                        (["--bodies", "brax_v1"], r"swingup_lqr_double_cartpole_brax_v1.json does "
+                                                                  r"not exist \(--controller\)")])
 def test_bad_arguments_name_the_flag(argv, flag):
     with pytest.raises(SystemExit, match=flag):
         rc.main(["--cpu-devices", "1", *argv])
