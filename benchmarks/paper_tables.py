@@ -174,7 +174,8 @@ def table(results, budget, variant=""):
                 f"{np.mean([r['balanced'] for r in rs]):.0%} | "
                 f"{np.mean([r.get('balanced_fraction', np.nan) for r in rs]):.0%} | {np.mean([r['env_steps'] for r in rs]):.2e} | "
                 f"{np.mean([r['wall_clock_seconds'] for r in rs]):.0f} |")
-    notes = [f"\nBudget: `{budget}`{variant}. {PAPER_NOTE['apg']}. Return of the final deterministic policy, mean over "
+    apg_note = f" {PAPER_NOTE['apg']}." if any(r["algo"] == "apg" for r in results) else ""
+    notes = [f"\nBudget: `{budget}`{variant}.{apg_note} Return of the final deterministic policy, mean over "
              f"{EVAL_EPISODES} evaluation episodes per seed; 'seeds balanced' = fraction of seeds whose every evaluation "
              f"episode keeps all links within 0.2 rad of upright over the final 20 %; 'episodes balanced' = the "
              f"fraction of all evaluation episodes that do. Wall-clock on {os.cpu_count()} "

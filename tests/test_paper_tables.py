@@ -97,3 +97,11 @@ def test_result_files_are_written_whole(tmp_path):
     write_json(path, {"new": [1, 2]})
     assert json.loads(path.read_text()) == {"new": [1, 2]}
     assert [p.name for p in tmp_path.iterdir()] == ["r.json"]  # no temporary file left beside it
+
+
+def test_the_apg_footnote_only_under_a_table_with_apg():
+    """The note on the APG row's paper column ("Brax's APG") is printed only where the table has an APG row."""
+    row = {"task": "acrobot", "return": 1.0, "balanced": False, "balanced_fraction": 0.0, "env_steps": 10,
+           "wall_clock_seconds": 1.0}
+    assert pt.PAPER_NOTE["apg"] not in pt.table([{**row, "algo": "ce_apg"}], "laptop")
+    assert pt.PAPER_NOTE["apg"] in pt.table([{**row, "algo": "ce_apg"}, {**row, "algo": "apg"}], "laptop")
