@@ -49,7 +49,7 @@ from benchmarks._files import write_json
 from benchmarks.swingup_lqr import replay, results_path
 from lagrange.tasks import make_task
 from optim import ce_apg, checkpoint
-from optim.apg import config_to_dict, evaluate
+from optim.apg import build_task, config_to_dict, evaluate
 from optim.devices import cpu_core_count, use_cpu_cores
 
 RESULTS = pathlib.Path(__file__).resolve().parent / "results"
@@ -163,6 +163,7 @@ def main(argv=None):
     warm = warmup(first, horizons, per_stage, task.horizon)
     planned = len(warm) * per_stage + -(-first // move) * per_stage + tail  # the learning-rate schedule's length
     cfg = ce_apg.CEAPGConfig.laptop(args.task, iterations=planned, bodies=args.bodies, **overrides)
+    task = build_task(cfg)  # with the observation the preset trains on (the acrobot's is (sin, cos, velocities))
     eval_key = jax.random.PRNGKey(10_000 + args.seed)  # the paper tables' evaluation starts
     print(f"{args.task}: controller return {expert_return:.1f}; the learning rate decays over {planned} iterations",
           flush=True)

@@ -56,11 +56,15 @@ def test_controller_states_replay_the_saved_controller():
         rc.controller_states(tasks.make_task("double_cartpole", "brax_v1"), d)
 
 
-def test_quick_run_writes_every_stage(tmp_path):
+@pytest.mark.parametrize("task, bodies", [("double_cartpole", "rods"),
+                                          # the acrobot's preset observes (sin, cos, velocities): the evaluation too
+                                          ("acrobot", "brax_v1")])
+def test_quick_run_writes_every_stage(tmp_path, task, bodies):
     # --held 0 keeps every stage, so the frontier moves 130 -> 0 in one stage; then the tail on the task's starts
     out = rc.main(["--quick", "--held", "0", "--cpu-devices", "1", "--out", str(tmp_path / "rc.json"),
-                   "--checkpoint", str(tmp_path / "rc.eqx")])
+                   "--checkpoint", str(tmp_path / "rc.eqx"), "--task", task, "--bodies", bodies])
     saved = json.loads((tmp_path / "rc.json").read_text())
+    assert saved["task"] == task and saved.get("bodies", "rods") == bodies and saved["config"]["bodies"] == bodies
     assert saved["stages"] == json.loads(json.dumps(out["stages"]))
     assert [r["frontier"] for r in saved["stages"]] == [130, 130, 0, None]
     assert [r["training_horizon"] for r in saved["stages"]] == [100, 500, 500, 500]
