@@ -108,7 +108,8 @@ def main(argv=None):
         print(f"{name}: over H {a['return']:7.0f} of {10 * h} ({a['balanced_fraction']:.0%} balanced); "
               f"over 500 {b['return']:9.0f} ({b['balanced_fraction']:.0%} balanced{drift}); "
               f"{r['env_steps']:.1e} env steps, {r['seconds']:.0f} s", flush=True)
-    out = {"task": args.task, **bodies_marker(args.bodies), "seed": args.seed, "iterations": iterations, "devices": len(jax.devices()),
+    out = {"task": args.task, **bodies_marker(args.bodies), "seed": args.seed, "iterations": iterations,
+           "devices": len(jax.devices()),
            "config": "CEAPGConfig.laptop(task, upright_starts=1, horizon=H, iterations)", "rows": rows}
     if not args.quick:
         path = results_path(args.task, args.bodies)

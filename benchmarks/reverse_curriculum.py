@@ -203,7 +203,8 @@ def main(argv=None):
         """The results so far and the kept CE state, both written atomically after every stage."""
         rows = run["rows"]
         final = [r for r in rows if r.get("kept", True)][-1]  # the evaluation of the kept state
-        out = {"task": args.task, **bodies_marker(args.bodies), "seed": args.seed, "controller": controller_path, "controller_return": expert_return,
+        out = {"task": args.task, **bodies_marker(args.bodies), "seed": args.seed, "controller": controller_path,
+               "controller_return": expert_return,
                "first": first, "last": args.last, "move": move, "per_stage": per_stage, "horizons": horizons,
                "frontier_weight": args.frontier_weight, "tail": tail, "max_stages": max_stages, "held": args.held,
                "quick": args.quick, "config": dataclasses.asdict(cfg), "finished": finished, "held_back_to": held,
