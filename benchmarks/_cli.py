@@ -48,6 +48,12 @@ def bodies_marker(bodies: str) -> dict:
     return {} if bodies == "rods" else {"bodies": bodies}
 
 
+def marked_bodies(result: dict) -> str:
+    """The bodies a result dict (or a config dict) names: its ``"bodies"``, the rods where there is none (the inverse
+    of :func:`bodies_marker`; results and configs from before the field existed are on the rods)."""
+    return result.get("bodies", "rods")
+
+
 def runs_result_path(out: str | None, results, stem: str, runs: str) -> str:
     """``out``, or ``results/<stem>_<name of the runs folder>.json``."""
     return out or os.path.join(results, f"{stem}_{os.path.basename(os.path.normpath(runs))}.json")

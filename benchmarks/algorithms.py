@@ -62,7 +62,7 @@ import jax.numpy as jnp  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from benchmarks._cli import add_bodies_flag, bodies_marker, bodies_suffix  # noqa: E402
+from benchmarks._cli import add_bodies_flag, bodies_marker, bodies_suffix, marked_bodies  # noqa: E402
 from benchmarks._files import write_json, write_text  # noqa: E402
 from lagrange.tasks import balanced, make_task  # noqa: E402
 from optim import ce_apg, shac  # noqa: E402
@@ -311,7 +311,7 @@ def import_ce_apg(task, seed, src_dir, bodies="rods"):
         return None
     with open(path) as f:
         r = json.load(f)
-    trained_on = (r.get("config") or {}).get("bodies", "rods")
+    trained_on = marked_bodies(r.get("config") or {})
     if trained_on != bodies:
         raise SystemExit(f"{path} was trained on bodies={trained_on!r}, not --bodies {bodies}: pick the paper_tables "
                          f"folder of those bodies (e.g. runs/paper_tables/laptop_braxv1 for brax_v1)")
@@ -430,7 +430,7 @@ def write_outputs(results, out, tag):
     write_table(results, os.path.join(out, f"{tag}.md"))
     for name in results["runs"]:
         plot_task(name, results["runs"][name], os.path.join(out, f"{tag}_{name}.png"), _budget_name(results),
-                  results["meta"].get("bodies", "rods"))
+                  marked_bodies(results["meta"]))
     return results
 
 
@@ -445,7 +445,7 @@ def _cpu_share(runs):
 
 
 def _bodies_sentence(results):
-    bodies = results["meta"].get("bodies", "rods")
+    bodies = marked_bodies(results["meta"])
     return "" if bodies == "rods" else (f" Every run on the tasks' `{bodies}` bodies (`lagrange.tasks.make_task`), "
                                         "not this library's rods.")
 

@@ -44,7 +44,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from benchmarks._cli import add_bodies_flag, at_least, bodies_marker, bodies_suffix
+from benchmarks._cli import add_bodies_flag, at_least, bodies_marker, bodies_suffix, marked_bodies
 from benchmarks._files import write_json
 from benchmarks.swingup_lqr import replay, results_path
 from lagrange.tasks import make_task
@@ -59,8 +59,9 @@ EVAL_EPISODES = 16  # as benchmarks/paper_tables.py
 def controller_states(task, controller: dict):
     """The states ``(H+1, 2n)`` (q then qd) of a ``swingup_lqr`` result's best controller, from the noise-free
     hanging start, and its return. Exits if the result was found on other bodies than ``task``'s."""
-    if controller.get("bodies", "rods") != (task.bodies or "rods"):
-        raise SystemExit(f"the swingup_lqr result was found on the {controller.get('bodies', 'rods')!r} bodies, the "
+    found_on = marked_bodies(controller)
+    if found_on != (task.bodies or "rods"):
+        raise SystemExit(f"the swingup_lqr result was found on the {found_on!r} bodies, the "
                          f"task is on {task.bodies!r} (--bodies)")
     best = controller.get("best")
     if not best:

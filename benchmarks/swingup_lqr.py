@@ -36,7 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from benchmarks._ascent import adam_best_seen
-from benchmarks._cli import add_bodies_flag, at_least, bodies_marker, bodies_suffix
+from benchmarks._cli import add_bodies_flag, at_least, bodies_marker, bodies_suffix, marked_bodies
 from benchmarks._files import write_json
 from benchmarks.refine_swingup import arrival
 from benchmarks.upright_basin import linearise, lqr_gain, upright_state
@@ -246,7 +246,7 @@ def replot(args) -> dict:
     path = results_path(args.task, args.out, args.bodies)
     with open(path) as f:
         out = json.load(f)
-    if out.get("task") != args.task or out.get("bodies", "rods") != args.bodies or not out.get("best"):
+    if out.get("task") != args.task or marked_bodies(out) != args.bodies or not out.get("best"):
         raise SystemExit(f"{path} holds no balanced controller for --task {args.task} --bodies {args.bodies}")
     plot(make_task(args.task, args.bodies), np.asarray(out["lqr_gain"]), out["best"], args.plot)
     print(f"drew {args.plot} from {path}")
