@@ -30,6 +30,8 @@ def make_task():
         ],
         gravity=9.81,
     )
+    # one RK4 step per 0.02 s interval: within 5e-5 of Dopri8 along the trained policy's episodes (|qd| <= 6.4 rad/s);
+    # far less accurate past 20 rad/s, where some random candidates go non-finite and are dropped (README, footnote §)
     return chain_swingup(chain, dt=0.02, horizon=250)
 
 
