@@ -19,6 +19,17 @@ def write_text(path, text: str) -> None:
     os.replace(tmp, path)
 
 
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def repo_relative(path) -> str:
+    """``path`` relative to the repository root when it lies inside it (so result files do not record this
+    machine's folders), else as given."""
+    path = os.fspath(path)
+    full = os.path.abspath(path)
+    return os.path.relpath(full, REPO) if os.path.commonpath([full, REPO]) == REPO else path
+
+
 def write_json(path, obj, *, indent: int = 1) -> None:
     """:func:`write_text` of ``obj`` as JSON."""
     write_text(path, json.dumps(obj, indent=indent))

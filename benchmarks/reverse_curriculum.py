@@ -45,7 +45,7 @@ import jax
 import jax.numpy as jnp
 
 from benchmarks._cli import add_bodies_flag, at_least, bodies_marker, bodies_suffix, marked_bodies
-from benchmarks._files import write_json
+from benchmarks._files import repo_relative, write_json
 from benchmarks.swingup_lqr import replay, results_path
 from lagrange.tasks import make_task
 from optim import ce_apg, checkpoint
@@ -204,13 +204,14 @@ def main(argv=None):
         """The results so far and the kept CE state, both written atomically after every stage."""
         rows = run["rows"]
         final = [r for r in rows if r.get("kept", True)][-1]  # the evaluation of the kept state
-        out = {"task": args.task, **bodies_marker(args.bodies), "seed": args.seed, "controller": controller_path,
+        out = {"task": args.task, **bodies_marker(args.bodies), "seed": args.seed,
+               "controller": repo_relative(controller_path),
                "controller_return": expert_return,
                "first": first, "last": args.last, "move": move, "per_stage": per_stage, "horizons": horizons,
                "frontier_weight": args.frontier_weight, "tail": tail, "max_stages": max_stages, "held": args.held,
                "quick": args.quick, "config": dataclasses.asdict(cfg), "finished": finished, "held_back_to": held,
                "final_hanging_return": final["hanging_return"], "final_hanging_balanced": final["hanging_balanced"],
-               "env_steps": run["env_steps"], "checkpoint": ckpt, "stages": rows}
+               "env_steps": run["env_steps"], "checkpoint": repo_relative(ckpt), "stages": rows}
         checkpoint.save(ckpt, run["state"], config=config_to_dict(cfg), seed=args.seed,
                         iteration=int(run["state"].iteration))
         write_json(path, out)
