@@ -7,13 +7,15 @@
 Each candidate's APG loss is ``-mean return + lam * mean_episodes sum_t w_t ||a_t - a*_t||^2`` with ``a*_t`` the
 saturated LQR's action (``benchmarks.upright_basin``'s gain, r = 1) and ``w_t = exp(-(th1^2 + th2^2) / (2 sigma^2))``
 (wrapped angles, 0 = upright); the fitness that selects the elites stays the return. The APG loop is
-``optim.apg.apg_steps`` with that loss (patched into ``optim.ce_apg``), the rest the laptop protocol.
+``optim.apg.apg_steps`` with that loss (``benchmarks.experiments._apg``, patched into ``optim.ce_apg``), the rest the laptop protocol.
 
 ``--bc`` starts the CE mean at a GRU behaviour-cloned from the LQR: 512 LQR episodes of 300 steps from upright
 +-0.02, Adam 3e-3 cosine-decayed over 4000 steps of 32 sequences, action MSE; the normaliser is fitted to those
-observations and to 512 hanging episodes (their first 300 steps) under random piecewise-constant torque, then given a count of 4000 so
-that training moves it. Prints the BC policy's upright evaluation, then every 10 iterations the best candidate's
-training return and its return and balanced count over the 16 evaluation episodes (key 1234).
+observations and to 512 hanging episodes (their first 300 steps) under random piecewise-constant torque (``--bc-norm
+lqr``: to the LQR's observations only), then given a count of 4000 so that training moves it. ``--lam 0`` is plain
+CE-APG (the library's loss); with ``--bc`` it starts from the cloned policy. Prints the BC policy's upright evaluation, then every 10 iterations the best candidate's
+training return and its return and balanced count over the 16 evaluation episodes (key 1234), and over 16 upright
+starts (key 5, as the BC policy's).
 """
 
 import argparse
@@ -25,9 +27,10 @@ import jax.numpy as jnp
 import optax
 
 import optim.ce_apg as ce_apg
+from benchmarks.experiments._apg import apg_steps_with
 from benchmarks.upright_basin import linearise, lqr_gain, upright_state
 from lagrange.tasks import make_task, wrap
-from optim.apg import APGResult, build_policy, episode, evaluate, flatten_policy
+from optim.apg import build_policy, evaluate, flatten_policy
 from policies import Normalizer
 
 
@@ -40,42 +43,21 @@ def make_teacher(task):
     return (lambda q, qd: jnp.clip(-(jnp.concatenate([wrap(q - x0[:n]), qd], -1) @ K.T), -1.0, 1.0)), x0[:n]
 
 
-def distilled_apg_steps(teacher, upright_q, lam, sigma):
-    """``optim.apg.apg_steps`` with the distillation term added to the loss (its batch returns still reported)."""
+def distillation_objective(teacher, upright_q, lam, sigma):
+    """The APG objective with the distillation term added (the reported return, which the fitness averages, stays
+    the batch return)."""
 
-    def apg_steps(task, unravel, params, normalizer, key, *, steps, episodes, learning_rate, truncation=None):
-        adam = optax.scale_by_adam()
+    def objective(task, eps):
+        q, qd = eps.q[:, :-1], eps.qd[:, :-1]
+        w = jnp.exp(-jnp.sum(wrap(q - upright_q) ** 2, -1) / (2 * sigma**2))
+        gap = jnp.sum((eps.actions - jax.lax.stop_gradient(teacher(q, qd))) ** 2, -1)
+        ret = jnp.mean(eps.ret)
+        return -ret + lam * jnp.mean(jnp.sum(w * gap, -1)), ret
 
-        def loss(p, norm, keys):
-            eps = jax.vmap(lambda k: episode(task, unravel(p), norm, k, truncation=truncation))(keys)
-            q, qd = eps.q[:, :-1], eps.qd[:, :-1]
-            w = jnp.exp(-jnp.sum(wrap(q - upright_q) ** 2, -1) / (2 * sigma**2))
-            gap = jnp.sum((eps.actions - jax.lax.stop_gradient(teacher(q, qd))) ** 2, -1)
-            ret = jnp.mean(eps.ret)
-            return -ret + lam * jnp.mean(jnp.sum(w * gap, -1)), (eps.obs, ret)
-
-        grad_fn = jax.value_and_grad(loss, has_aux=True)
-
-        def body(carry, i):
-            p, opt, norm, ok = carry
-            keys = jax.random.split(jax.random.fold_in(key, i), episodes)
-            (value, (obs, ret)), g = grad_fn(p, norm, keys)
-            good = ok & jnp.isfinite(value) & jnp.all(jnp.isfinite(g))
-            upd, opt2 = adam.update(jnp.where(good, g, 0.0), opt)
-            keep = lambda new, old: jax.tree_util.tree_map(lambda a, b: jnp.where(good, a, b), new, old)
-            p2, opt2 = keep(p - learning_rate * upd, p), keep(opt2, opt)
-            if norm is not None:
-                norm = keep(norm.update(obs), norm)
-            return (p2, opt2, norm, good), ret
-
-        init = (params, adam.init(params), normalizer, jnp.asarray(True))
-        (p, _, norm, ok), returns = jax.lax.scan(body, init, jnp.arange(steps))
-        return APGResult(p, norm, returns, ok & jnp.all(jnp.isfinite(returns)))
-
-    return apg_steps
+    return objective
 
 
-def behaviour_clone(cfg, task, teacher, seed):
+def behaviour_clone(cfg, task, teacher, seed, swing_norm=True):
     """``(flat parameters, normaliser)`` of a GRU cloned from the LQR (see the module docstring)."""
 
     def lqr_episode(k):
@@ -92,7 +74,8 @@ def behaviour_clone(cfg, task, teacher, seed):
     obs, acts = jax.jit(jax.vmap(lqr_episode))(jax.random.split(jax.random.PRNGKey(77), 512))
     swing = jax.jit(jax.vmap(torque_episode))(jax.random.split(jax.random.PRNGKey(78), 512))
     size = obs.shape[-1]
-    norm = Normalizer.create(size).update(jnp.concatenate([obs.reshape(-1, size), swing.reshape(-1, size)]))
+    fit = [obs.reshape(-1, size), swing.reshape(-1, size)] if swing_norm else [obs.reshape(-1, size)]
+    norm = Normalizer.create(size).update(jnp.concatenate(fit))
     norm = dataclasses.replace(norm, count=jnp.asarray(4000.0, norm.count.dtype))
     flat, unravel = flatten_policy(build_policy(cfg, task, jax.random.PRNGKey(seed)))
     adam = optax.adam(optax.cosine_decay_schedule(3e-3, 4000))
@@ -136,25 +119,32 @@ def main(argv=None):
     p.add_argument("--bodies", default="rods", choices=("rods", "brax_v1"))
     p.add_argument("--iterations", type=int, default=150)
     p.add_argument("--bc", action="store_true", help="start the CE mean at the behaviour-cloned LQR")
+    p.add_argument("--bc-norm", choices=("lqr+swing", "lqr"), default="lqr+swing",
+                   help="observations the BC normaliser is fitted to: the LQR's and the random-torque swings', or "
+                        "the LQR's only")
     args = p.parse_args(argv)
     teacher, upright_q = make_teacher(make_task("acrobot", args.bodies))
     if args.lam > 0:
-        ce_apg.apg_steps = distilled_apg_steps(teacher, upright_q, args.lam, args.sigma)
+        ce_apg.apg_steps = apg_steps_with(distillation_objective(teacher, upright_q, args.lam, args.sigma))
     cfg = ce_apg.CEAPGConfig.laptop("acrobot", bodies=args.bodies, upright_starts=args.upright)
     cfg = cfg.with_iterations(args.iterations)
     trainer = ce_apg.make_trainer(cfg)
     state = trainer.init(jax.random.PRNGKey(args.seed))
     if args.bc:
-        flat, norm = behaviour_clone(cfg, trainer.task, teacher, args.seed)
+        flat, norm = behaviour_clone(cfg, trainer.task, teacher, args.seed, args.bc_norm == "lqr+swing")
         state = state._replace(mean=flat, best=flat, normalizer=norm, best_normalizer=norm)
     scores = jax.jit(lambda policy, norm: evaluate(trainer.task, policy, norm, jax.random.PRNGKey(1234), 16))
+    upright = dataclasses.replace(trainer.task, upright=1.0)
+    upright_scores = jax.jit(lambda policy, norm: evaluate(upright, policy, norm, jax.random.PRNGKey(5), 16))
     t0 = time.time()
     for it in range(cfg.iterations):
         state, metrics = trainer.update(state)
         if (it + 1) % 10 == 0 or it + 1 == cfg.iterations:
             returns, balanced = scores(*trainer.policy(state))
+            up_returns, up_balanced = upright_scores(*trainer.policy(state))
             print(f"iteration {it + 1}: best training return {float(metrics['best_return']):.0f}, evaluation "
-                  f"{float(jnp.mean(returns)):.0f}, balanced {int(balanced.sum())} of 16, {time.time() - t0:.0f} s",
+                  f"{float(jnp.mean(returns)):.0f}, balanced {int(balanced.sum())} of 16 (from upright "
+                  f"{float(jnp.mean(up_returns)):.0f}, {int(up_balanced.sum())} of 16), {time.time() - t0:.0f} s",
                   flush=True)
 
 
