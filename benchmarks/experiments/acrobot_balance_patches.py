@@ -42,13 +42,13 @@ PATCHES = ("none", "terminal", "select1000", "unwrapped")
 CURRICULUM = (100, 150, 200, 300, 400)
 
 
-def _offset(task, n):
+def _offset(n):
     return jnp.zeros(n).at[0].set(jnp.pi)  # first pole: 0 = hanging in q, upright at pi
 
 
 def terminal_objective(task, eps):
     q, qd = eps.q[:, -1, task.first_pole:], eps.qd[:, -1, task.first_pole:]  # each episode's last state
-    th = wrap(q - _offset(task, q.shape[-1]))  # as Task.angles
+    th = wrap(q - _offset(q.shape[-1]))  # as Task.angles
     penalty = 10 * jnp.log(jnp.sum(th**2, -1) + 0.1 * jnp.sum(qd**2, -1))
     ret = jnp.mean(eps.ret)
     return -ret + jnp.mean(penalty), ret
@@ -56,7 +56,7 @@ def terminal_objective(task, eps):
 
 def unwrapped_objective(task, eps):
     q, qd = eps.q[:, 1:, task.first_pole:], eps.qd[:, 1:, task.first_pole:]  # the rewards' next states
-    r = 10.0 - jnp.sum((q - _offset(task, q.shape[-1])) ** 2, -1) - 0.01 * jnp.sum(qd**2, -1)
+    r = 10.0 - jnp.sum((q - _offset(q.shape[-1])) ** 2, -1) - 0.01 * jnp.sum(qd**2, -1)
     ret = jnp.mean(jnp.sum(r, -1))
     return -ret, ret
 
