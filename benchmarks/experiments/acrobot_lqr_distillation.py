@@ -29,6 +29,7 @@ import optax
 import optim.ce_apg as ce_apg
 from benchmarks.experiments._apg import apg_steps_with
 from benchmarks.upright_basin import linearise, lqr_gain, upright_state
+from lagrange import tasks
 from lagrange.tasks import make_task, wrap
 from optim.apg import build_policy, evaluate, flatten_policy
 from policies import Normalizer
@@ -107,6 +108,19 @@ def behaviour_clone(cfg, task, teacher, seed, swing_norm=True):
     upright = dataclasses.replace(task, upright=1.0)
     returns, balanced = jax.jit(lambda p: evaluate(upright, unravel(p), norm, jax.random.PRNGKey(5), 16))(flat)
     print(f"BC policy from upright: return {float(returns.mean()):.0f}, balanced {int(balanced.sum())} of 16", flush=True)
+
+    def lqr_evaluation(k):  # the teacher itself on the same 16 upright starts, 500 steps
+        def body(s, _):
+            s2 = task.step(s, teacher(s.q, s.qd))
+            return s2, (task.reward(s, None, s2), s2.q)
+
+        s0 = upright.reset(k)
+        _, (r, q) = jax.lax.scan(body, s0, None, length=upright.horizon)
+        return jnp.sum(r), jnp.concatenate([s0.q[None], q])
+
+    lqr_returns, lqr_q = jax.jit(jax.vmap(lqr_evaluation))(jax.random.split(jax.random.PRNGKey(5), 16))
+    print(f"the LQR itself from upright: return {float(lqr_returns.mean()):.0f}, balanced "
+          f"{int(tasks.balanced(upright, lqr_q).sum())} of 16", flush=True)
     return flat, norm
 
 
