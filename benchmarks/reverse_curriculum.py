@@ -4,8 +4,8 @@
     python -m benchmarks.reverse_curriculum --quick      # a smoke run of the same stages, tiny population
     python -m benchmarks.reverse_curriculum --task acrobot --bodies brax_v1   # along swingup_lqr_acrobot_brax_v1.json
 
-CE-APG's double-cartpole policies spin (README); ``benchmarks/swingup_lqr.py`` found a balanced swing-up worth 4396
-(an open-loop swing-up caught by LQR). This script asks whether the learner can follow it backwards. The states
+CE-APG's double-cartpole policies spin (docs/balance.md); ``benchmarks/swingup_lqr.py`` found a balanced swing-up
+worth 4396 (an open-loop swing-up caught by LQR). This script asks whether the learner can follow it backwards. The states
 ``X[k] = (q, qd)`` at steps k of that controller's noise-free episode seed the training starts (``Task.starts``, with
 the task's +-0.01 noise). One CE-APG run (the laptop protocol's settings) goes through stages:
 

@@ -2,7 +2,8 @@
 
     python -m benchmarks.experiments.acrobot_lqr_distillation --seed 0 --bc --upright 0   # from the BC policy
     python -m benchmarks.experiments.acrobot_lqr_distillation --seed 0 --upright 0.25     # from zeros
-    (about 15 minutes each with two at a time on two cores; the README's runs: seeds 0 and 1 of each)
+    (about 15 minutes each with two at a time on two cores; docs/balance.md's runs: seeds 0 and 1 of each, and
+    with --lam 0 --bc --bc-norm lqr seeds 0-3)
 
 Each candidate's APG loss is ``-mean return + lam * mean_episodes sum_t w_t ||a_t - a*_t||^2`` with ``a*_t`` the
 saturated LQR's action (``benchmarks.upright_basin``'s gain, r = 1) and ``w_t = exp(-(th1^2 + th2^2) / (2 sigma^2))``
