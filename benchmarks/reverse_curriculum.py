@@ -5,9 +5,9 @@
     python -m benchmarks.reverse_curriculum --task acrobot --bodies brax_v1   # along swingup_lqr_acrobot_brax_v1.json
 
 CE-APG's double-cartpole policies spin (docs/balance.md); ``benchmarks/swingup_lqr.py`` found a balanced swing-up
-worth 4396 (an open-loop swing-up caught by LQR). This script asks whether the learner can follow it backwards. The states
-``X[k] = (q, qd)`` at steps k of that controller's noise-free episode seed the training starts (``Task.starts``, with
-the task's +-0.01 noise). One CE-APG run (the laptop protocol's settings) goes through stages:
+worth 4396 (an open-loop swing-up caught by LQR). This script asks whether the learner can follow it backwards. The
+states ``X[k] = (q, qd)`` at steps k of that controller's noise-free episode seed the training starts
+(``Task.starts``, with the task's +-0.01 noise). One CE-APG run (the laptop protocol's settings) goes through stages:
 
 1. warm-up at the frontier ``--first`` (near the end of the swing-up): the horizons ``--horizons``, then the task's
    500 steps (a flat 500-step horizon does not learn the hold, ``benchmarks/balance_horizon.py``);

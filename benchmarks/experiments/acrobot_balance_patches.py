@@ -3,7 +3,7 @@
     python -m benchmarks.experiments.acrobot_balance_patches --patch none --seed 0        # about 2 minutes each
     python -m benchmarks.experiments.acrobot_balance_patches --patch terminal --seed 0
     python -m benchmarks.experiments.acrobot_balance_patches --patch select1000 --seed 0
-    python -m benchmarks.experiments.acrobot_balance_patches --patch none --curriculum --seed 0       # 100 -> ... -> 500
+    python -m benchmarks.experiments.acrobot_balance_patches --patch none --curriculum --seed 0   # 100 -> ... -> 500
     python -m benchmarks.experiments.acrobot_balance_patches --patch unwrapped --curriculum --seed 0
 
 The setting is ``benchmarks.balance_horizon``'s (rods unless ``--bodies``; every training episode starts upright;

@@ -8,15 +8,16 @@
 Each candidate's APG loss is ``-mean return + lam * mean_episodes sum_t w_t ||a_t - a*_t||^2`` with ``a*_t`` the
 saturated LQR's action (``benchmarks.upright_basin``'s gain, r = 1) and ``w_t = exp(-(th1^2 + th2^2) / (2 sigma^2))``
 (wrapped angles, 0 = upright); the fitness that selects the elites stays the return. The APG loop is
-``optim.apg.apg_steps`` with that loss (``benchmarks.experiments._apg``, patched into ``optim.ce_apg``), the rest the laptop protocol.
+``optim.apg.apg_steps`` with that loss (``benchmarks.experiments._apg``, patched into ``optim.ce_apg``), the rest the
+laptop protocol.
 
-``--bc`` starts the CE mean at a GRU behaviour-cloned from the LQR: 512 LQR episodes of 300 steps from upright
-+-0.02, Adam 3e-3 cosine-decayed over 4000 steps of 32 sequences, action MSE; the normaliser is fitted to those
-observations and to 512 hanging episodes (their first 300 steps) under random piecewise-constant torque (``--bc-norm
-lqr``: to the LQR's observations only), then given a count of 4000 so that training moves it. ``--lam 0`` is plain
-CE-APG (the library's loss); with ``--bc`` it starts from the cloned policy. Prints the BC policy's upright evaluation, then every 10 iterations the best candidate's
-training return and its return and balanced count over the 16 evaluation episodes (key 1234), and over 16 upright
-starts (key 5, as the BC policy's).
+``--bc`` starts the CE mean at a GRU behaviour-cloned from the LQR: 512 LQR episodes of 300 steps from upright +-0.02,
+Adam 3e-3 cosine-decayed over 4000 steps of 32 sequences, action MSE; the normaliser is fitted to those observations
+and to 512 hanging episodes (their first 300 steps) under random piecewise-constant torque (``--bc-norm lqr``: to the
+LQR's observations only), then given a count of 4000 so that training moves it. ``--lam 0`` is plain CE-APG (the
+library's loss); with ``--bc`` it starts from the cloned policy. Prints the BC policy's upright evaluation, then every
+10 iterations the best candidate's training return and its return and balanced count over the 16 evaluation episodes
+(key 1234), and over 16 upright starts (key 5, as the BC policy's).
 """
 
 import argparse
@@ -108,7 +109,8 @@ def behaviour_clone(cfg, task, teacher, seed, swing_norm=True):
             print(f"behaviour cloning step {i}: action MSE {float(loss):.2e}", flush=True)
     upright = dataclasses.replace(task, upright=1.0)
     returns, balanced = jax.jit(lambda p: evaluate(upright, unravel(p), norm, jax.random.PRNGKey(5), 16))(flat)
-    print(f"BC policy from upright: return {float(returns.mean()):.0f}, balanced {int(balanced.sum())} of 16", flush=True)
+    print(f"BC policy from upright: return {float(returns.mean()):.0f}, balanced {int(balanced.sum())} of 16",
+          flush=True)
 
     def lqr_evaluation(k):  # the teacher itself on the same 16 upright starts, 500 steps
         def body(s, _):
