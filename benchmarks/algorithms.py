@@ -124,7 +124,7 @@ LAPTOP = {
     "brax_apg": dict(FULL["brax_apg"]),  # the paper's 1e7 steps
 }
 LAPTOP_CUTS = {
-    "ce_apg": "CEAPGConfig.laptop(task): 1.8e8 (acrobot), 2.4e7 (cartpole), 9e7 (double cartpole) of the paper's "
+    "ce_apg": "CEAPGConfig.laptop(task): 1.8e8 (acrobot), 7.2e7 (cartpole), 9e7 (double cartpole) of the paper's "
               "~1e9 env steps (fewer elites, APG steps, episodes and iterations; lr 1e-2 -> 1e-4 instead of "
               "1e-3 -> 1e-6; (sin, cos) observations on the acrobot)",
     "ppo": f"{PPO_LAPTOP_STEPS:.3g} of the paper's 8e7 env steps, 3 updates (same batch geometry and "
