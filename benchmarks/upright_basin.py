@@ -65,26 +65,40 @@ def lqr_gain(A, B, r: float):
     return np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
 
 
+def upright_deviation(task):
+    """``deviation(q, qd) -> dx`` (..., 2n): the state minus upright at rest, angles wrapped (batched)."""
+    n = task.chain.n
+    x0 = jnp.asarray(upright_state(task))
+    angular = jnp.arange(n) >= task.first_pole
+
+    def deviation(q, qd):
+        dq = jnp.where(angular, wrap(q - x0[:n]), q - x0[:n])
+        return jnp.concatenate([dq, qd], axis=-1)
+
+    return deviation
+
+
+def saturated_lqr(task, K):
+    """``controller(q, qd) -> u`` (..., m): the saturated LQR ``clip(-K dx, -1, 1)`` about upright (batched)."""
+    deviation = upright_deviation(task)
+    K = jnp.asarray(K, jnp.asarray(upright_state(task)).dtype)
+    return lambda q, qd: jnp.clip(-(deviation(q, qd) @ K.T), -1.0, 1.0)
+
+
 def make_rollout(task, K, steps: int):
     """``rollout(x)``: the largest |coordinate or velocity error| from upright at rest after ``steps`` control steps
     of the saturated LQR from ``x`` (NaN if the state went non-finite, which counts as not recovered), jitted."""
     n = task.chain.n
-    x0 = jnp.asarray(upright_state(task))
-    K = jnp.asarray(K, x0.dtype)
-    angular = jnp.arange(n) >= task.first_pole
-
-    def deviation(x):  # x - x0 with the angles wrapped (x0 is at rest)
-        dq = jnp.where(angular, wrap(x[:n] - x0[:n]), x[:n] - x0[:n])
-        return jnp.concatenate([dq, x[n:]])
+    dtype = jnp.asarray(upright_state(task)).dtype
+    deviation, controller = upright_deviation(task), saturated_lqr(task, K)
 
     def body(x, _):
-        u = jnp.clip(-(K @ deviation(x)), -1.0, 1.0)
-        s = task.step(TaskState(x[:n], x[n:]), u)
+        s = task.step(TaskState(x[:n], x[n:]), controller(x[:n], x[n:]))
         return jnp.concatenate([s.q, s.qd]), None
 
     def rollout(x):
-        xT, _ = jax.lax.scan(body, jnp.asarray(x, x0.dtype), None, length=steps)
-        return jnp.max(jnp.abs(deviation(xT)))
+        xT, _ = jax.lax.scan(body, jnp.asarray(x, dtype), None, length=steps)
+        return jnp.max(jnp.abs(deviation(xT[:n], xT[n:])))
 
     return jax.jit(rollout)
 

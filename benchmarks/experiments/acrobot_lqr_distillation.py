@@ -30,7 +30,7 @@ import optax
 
 import optim.ce_apg as ce_apg
 from benchmarks.experiments._apg import apg_steps_with
-from benchmarks.upright_basin import linearise, lqr_gain, upright_state
+from benchmarks.upright_basin import linearise, lqr_gain, saturated_lqr, upright_state
 from lagrange import tasks
 from lagrange.tasks import make_task, wrap
 from optim.apg import build_policy, evaluate, flatten_policy
@@ -38,12 +38,9 @@ from policies import Normalizer
 
 
 def make_teacher(task):
-    """``teacher(q, qd) -> a*`` (..., 1), the saturated LQR, and the upright state."""
+    """``teacher(q, qd) -> a*`` (..., 1), the saturated LQR, and the upright coordinates."""
     A, B = linearise(task)
-    K = jnp.asarray(lqr_gain(A, B, 1.0), jnp.float32)
-    x0 = jnp.asarray(upright_state(task), jnp.float32)
-    n = task.chain.n
-    return (lambda q, qd: jnp.clip(-(jnp.concatenate([wrap(q - x0[:n]), qd], -1) @ K.T), -1.0, 1.0)), x0[:n]
+    return saturated_lqr(task, lqr_gain(A, B, 1.0)), jnp.asarray(upright_state(task))[:task.chain.n]
 
 
 def distillation_objective(teacher, upright_q, lam, sigma):

@@ -12,31 +12,28 @@ import os
 import sys
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "examples"))
 
 import custom_chain  # noqa: E402
 
-from benchmarks.upright_basin import linearise, lqr_gain, upright_state  # noqa: E402
-from lagrange.tasks import balanced, wrap  # noqa: E402
+from benchmarks.upright_basin import linearise, lqr_gain, saturated_lqr  # noqa: E402
+from lagrange.tasks import balanced  # noqa: E402
 
 
 def main():
     task = custom_chain.make_task()
-    n = task.chain.n
     A, B = linearise(task)
     print(f"open-loop spectral radius {np.abs(np.linalg.eigvals(A)).max():.4f}")
-    x0 = jnp.asarray(upright_state(task), jnp.float32)
     upright = dataclasses.replace(task, upright=1.0)
     for r in (1.0, 100.0):
         K = lqr_gain(A, B, r)
-        Kj = jnp.asarray(K, jnp.float32)
+        controller = saturated_lqr(task, K)
 
         def episode(key):
             def body(s, _):
-                a = jnp.clip(-(Kj @ jnp.concatenate([wrap(s.q - x0[:n]), s.qd])), -1, 1)
+                a = controller(s.q, s.qd)
                 s2 = task.step(s, a)
                 return s2, (task.reward(s, a, s2), s2.q)
 
