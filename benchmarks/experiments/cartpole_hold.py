@@ -3,11 +3,11 @@
     python examples/cartpole_swingup.py --out runs/cartpole_swingup        # the example's default run (about 90 s)
     python -m benchmarks.experiments.cartpole_hold --checkpoint runs/cartpole_swingup/checkpoint.eqx
 
-Loads the example's checkpoint, runs the policy it reports (``results.json``'s ``policy``: the CE mean or the best
-candidate; default the mean) from the 16 evaluation starts of ``benchmarks/paper_tables.py`` for seed 0 (key 10_000),
-and prints the mean return, the range of the cart's final position, and, after ``--from-step``, the fraction of
-control steps at which the force changes sign, its mean magnitude (in units of the 100 N gear) and the pole's largest
-distance from upright.
+Loads the example's checkpoint, runs ``--policy`` (the CE mean, default, or the best candidate; the example reports
+the one its ``results.json`` names under ``policy``) from the 16 evaluation starts of ``benchmarks/paper_tables.py``
+for seed 0 (key 10_000), and prints the mean return, the range of the cart's final position, and, after
+``--from-step``, the fraction of control steps at which the force changes sign, its mean magnitude (in units of the
+100 N gear) and the pole's largest distance from upright.
 """
 
 import argparse
@@ -15,7 +15,7 @@ import argparse
 import jax
 import numpy as np
 
-from lagrange.tasks import TaskState
+from lagrange.tasks import upright_error
 from optim import ce_apg
 from optim.apg import episode
 
@@ -33,8 +33,7 @@ def main(argv=None):
     x = np.asarray(eps.q[:, -1, 0])
     a = np.asarray(eps.actions[:, args.from_step:, 0])
     flips = np.mean(np.sign(a[:, 1:]) != np.sign(a[:, :-1]))
-    angle = jax.vmap(jax.vmap(lambda q: trainer.task.angles(TaskState(q, q))))  # angles read q only
-    th = np.abs(np.asarray(angle(eps.q[:, args.from_step:])))
+    th = np.asarray(upright_error(trainer.task, eps.q[:, args.from_step:]))
     print(f"return {float(np.mean(eps.ret)):.1f}; final cart x {x.min():.1f} to {x.max():.1f} m; after step "
           f"{args.from_step}: force changes sign at {flips:.0%} of steps, mean |a| {np.abs(a).mean():.2f}, pole within "
           f"{th.max():.3f} rad of upright")
