@@ -39,8 +39,8 @@ from benchmarks._ascent import adam_best_seen
 from benchmarks._cli import add_bodies_flag, at_least, bodies_marker, bodies_suffix, marked_bodies
 from benchmarks._files import write_json
 from benchmarks.refine_swingup import arrival
-from benchmarks.upright_basin import linearise, lqr_gain, upright_state
-from lagrange.tasks import TaskState, balanced, make_task, wrap
+from benchmarks.upright_basin import linearise, lqr_gain, upright_deviation, upright_state
+from lagrange.tasks import TaskState, balanced, make_task
 
 RESULTS = pathlib.Path(__file__).resolve().parent / "results"
 EVAL_EPISODES = 16  # the paper tables' noisy starts
@@ -55,14 +55,11 @@ EDGE = 1.0 - 1e-6  # |LQR command| is clipped below 1 so that atanh stays finite
 def make_controller(task, K, T: int):
     """``episode(z, s0) -> (return, states, actions (H,), rewards (H,))`` of the swing-up-then-LQR controller with
     offsets ``z`` (H,) from the state ``s0``; ``states`` is the visited :class:`TaskState`, ``s0`` included (H+1, n)."""
-    n = task.chain.n
-    x0 = jnp.asarray(upright_state(task))
-    K = jnp.asarray(K, x0.dtype)
-    angular = jnp.arange(n) >= task.first_pole
+    K = jnp.asarray(K, jnp.asarray(upright_state(task)).dtype)
+    deviation = upright_deviation(task)
 
     def lqr(s):
-        dq = jnp.where(angular, wrap(s.q - x0[:n]), s.q - x0[:n])
-        return jnp.clip(-(K @ jnp.concatenate([dq, s.qd])), -EDGE, EDGE)
+        return jnp.clip(-(K @ deviation(s.q, s.qd)), -EDGE, EDGE)
 
     def episode(z, s0):
         def body(s, x):
