@@ -145,8 +145,8 @@ class Geometry:
         if b == BASE:
             return self.sin_abs(a)
         if a == BASE:
-            return s.neg(self.sin_abs(b))
-        return self._rel(a, b, 0) if a > b else s.neg(self._rel(b, a, 0))
+            return s.negated(self.sin_abs(b))
+        return self._rel(a, b, 0) if a > b else s.negated(self._rel(b, a, 0))
 
     def rel_cos(self, a, b):
         """cos(phi_a - phi_b)."""
@@ -162,10 +162,10 @@ class Geometry:
         if k1 == k2:
             return self.rel_cos(a1, a2)
         sn = self.rel_sin(a1, a2)
-        return sn if k1 == "d" else s.neg(sn)
+        return sn if k1 == "d" else s.negated(sn)
 
     def unit_z(self, kind, a):
-        return s.neg(self.cos_abs(a)) if kind == "d" else self.sin_abs(a)
+        return s.negated(self.cos_abs(a)) if kind == "d" else self.sin_abs(a)
 
     # -- derivatives ----------------------------------------------------------------------
     def _coef(self, c, qk):
@@ -182,7 +182,7 @@ class Geometry:
                 if kind == "d":
                     _acc(out, ("e", a), self._coef(c, qk))
                 else:
-                    _acc(out, ("d", a), s.neg(self._coef(c, qk)))
+                    _acc(out, ("d", a), s.negated(self._coef(c, qk)))
         return out
 
     def rate(self, a):
@@ -194,13 +194,13 @@ class Geometry:
         for c, qk, kind, a in self.coms[i]:
             w = self.rate(a)
             if not s.is_zero(w):
-                _acc(out, (kind, a), s.neg(s.mul(self._coef(c, qk), s.mul(w, w))))
+                _acc(out, (kind, a), s.negated(s.mul(self._coef(c, qk), s.mul(w, w))))
                 if qk is not None:
                     t = s.mul(s.mul(2.0, c), s.mul(self.qd[qk], w))
                     if kind == "d":
                         _acc(out, ("e", a), t)
                     else:
-                        _acc(out, ("d", a), s.neg(t))
+                        _acc(out, ("d", a), s.negated(t))
         return out
 
     def dot(self, x: dict, y: dict, scale=1.0):

@@ -24,7 +24,9 @@ under ``jit``, ``vmap`` and ``grad``.
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
+import numpy as np
 
 from lagrange import _scalar as s
 from lagrange import _unitvec
@@ -32,6 +34,22 @@ from lagrange import recursive
 from lagrange._linalg import solve_spd, to_array
 from lagrange.chain import Chain
 from lagrange.kinematics import frames
+
+
+def _as_constant(x):
+    if isinstance(x, jax.Array) and not isinstance(x, jax.core.Tracer) and x.is_fully_addressable:
+        return np.asarray(x)
+    return x
+
+
+def _folded(chain: Chain) -> Chain:
+    """``chain`` with its concrete parameters as NumPy arrays, so that their products with each other are computed
+    while tracing and reach XLA as literals. A chain closed over by a jitted function has concrete parameters, but
+    XLA receives them as run-time operands of the time-stepping loop: it neither folds them nor, on the CPU, always
+    vectorizes the fused step around them (measured: a batched RK4 rollout of the cartpole ran 1.5x slower,
+    ``benchmarks/derivation_overhead.py``). Parameters being differentiated or vmapped are tracers and stay as
+    they are."""
+    return jax.tree_util.tree_map(_as_constant, chain)
 
 
 def _check(chain: Chain, name: str, x, size: int):
@@ -144,6 +162,7 @@ def _stack(xs, like):
 def mass_matrix(chain: Chain, q) -> jnp.ndarray:
     """Mass matrix ``M(q)``, shape ``(..., n, n)``, symmetric positive definite."""
     _check(chain, "q", q, chain.n)
+    chain = _folded(chain)
     if _recursive(chain):
         return recursive.mass_matrix(chain, q)
     M, _ = _terms(chain, q, None, mass=True, velocity=False, gravity=False)
@@ -154,6 +173,7 @@ def bias_forces(chain: Chain, q, qd) -> jnp.ndarray:
     """``C(q, qd) qd + T(q) + D qd``, shape ``(..., n)``: what the joints must supply at ``qdd = 0``."""
     _check(chain, "q", q, chain.n)
     _check(chain, "qd", qd, chain.n)
+    chain = _folded(chain)
     if _recursive(chain):
         return recursive.bias_forces(chain, q, qd)
     _, f = _terms(chain, q, qd, mass=False, velocity=True, gravity=True)
@@ -163,6 +183,7 @@ def bias_forces(chain: Chain, q, qd) -> jnp.ndarray:
 def gravity_forces(chain: Chain, q) -> jnp.ndarray:
     """``T(q) = dV/dq``, shape ``(..., n)``."""
     _check(chain, "q", q, chain.n)
+    chain = _folded(chain)
     if _recursive(chain):
         return recursive.gravity_forces(chain, q)
     _, f = _terms(chain, q, None, mass=False, velocity=False, gravity=True)
@@ -198,13 +219,15 @@ def _forward(chain: Chain, q, qd, u=None, implicit_damping_dt=None) -> jnp.ndarr
     """``forward_dynamics``; with ``implicit_damping_dt = h`` it solves with ``M + h diag(damping)``."""
     _check(chain, "q", q, chain.n)
     _check(chain, "qd", qd, chain.n)
+    chain = _folded(chain)
     if _recursive(chain):
         if u is not None:
             _check(chain, "u", u, chain.m)
         return recursive.forward_dynamics(chain, q, qd, u, implicit_damping_dt=implicit_damping_dt)
     M, bias = _terms(chain, q, qd, mass=True, velocity=True, gravity=True)
     tau = _actuation(chain, u) if u is not None else [0.0] * chain.n
-    rhs = [s.sub(t, b) for t, b in zip(tau, bias)]
+    # an unactuated joint's -bias keeps its sign symbolic (folded into the solve, see _scalar.negated)
+    rhs = [s.negated(b) if s.is_zero(t) else s.sub(t, b) for t, b in zip(tau, bias)]
     like = q[..., 0] if jnp.ndim(q) >= jnp.ndim(qd) else qd[..., 0]
     if implicit_damping_dt is not None and chain.damping is not None:
         for j in chain.damped:

@@ -192,3 +192,100 @@ def test_acrobot_trigonometry():
     terms), sin q1 and sin(q1 + q2) (gravity); a hand-written version needs the same 4."""
     t = Traced(lg.systems.acrobot())
     assert t.trig() == 4, dict(t.counts)
+
+
+STRUCTURES = {
+    "acrobot": lg.systems.acrobot(),
+    "cartpole": lg.systems.cartpole(),
+    "double cartpole": lg.systems.double_cartpole(),
+    "passive double pendulum": lg.systems.n_link_pendulum(2),
+    "4-link pendulum": lg.systems.n_link_pendulum(4),
+    "damped acrobot": lg.systems.acrobot(damping=0.1),
+    "RPR, tilted slide": Chain([Link("revolute", 1.0, 1.0), Link("prismatic", 1.0, 1.0, axis=0.3, gear=2.0),
+                                Link("revolute", 1.0, 1.0, gear=1.0)]),
+    "RRP": Chain([Link("revolute", 1.0, 1.0), Link("revolute", 1.0, 1.0), Link("prismatic", 1.0, 1.0, gear=1.0)]),
+}
+
+
+@pytest.mark.parametrize("name", list(STRUCTURES))
+def test_no_negation_reaches_xla(name):
+    """Every sign of the derivation is folded while tracing, into a constant factor or by turning an addition into
+    a subtraction (``lagrange._scalar.negated``): no ``neg`` is left in the forward dynamics, and no ``negate`` in
+    the compiled batched RK4 rollout. XLA's CPU backend does not vectorize a fused loop that contains a negate
+    (a batched cartpole rollout ran 1.8x slower with one, ``benchmarks/derivation_overhead.py``)."""
+    chain = STRUCTURES[name]
+    assert Traced(chain).counts["neg"] == 0, dict(Traced(chain).counts)
+    n, m = chain.n, chain.m
+    rollout = jax.jit(jax.vmap(lambda q, qd, us: lg.simulate(chain, q, qd, us, 0.01).q))
+    us = jnp.zeros((4, 3, m)) if m else None
+    if us is None:
+        rollout = jax.jit(jax.vmap(lambda q, qd: lg.simulate(chain, q, qd, None, 0.01, steps=3).q))
+        hlo = rollout.lower(jnp.zeros((4, n)), jnp.zeros((4, n))).compile().as_text()
+    else:
+        hlo = rollout.lower(jnp.zeros((4, n)), jnp.zeros((4, n)), us).compile().as_text()
+    assert " negate(" not in hlo
+    # positive control: the search finds a negate where one is written
+    control = jax.jit(jax.vmap(lambda q: -jnp.sin(q))).lower(jnp.zeros((4, n))).compile().as_text()
+    assert " negate(" in control
+
+
+def test_concrete_parameters_are_folded():
+    """A chain closed over by a traced function has concrete parameters: their products are computed while tracing
+    and reach the program as literals (``lagrange.dynamics._folded``), which is fewer operations than with the
+    parameters as inputs; the values agree, and traced parameters (a gradient with respect to the chain) still flow."""
+    chain = lg.systems.double_cartpole()
+    q, qd, u = jnp.array([0.3, -1.2, 2.0]), jnp.array([0.5, 1.5, -2.5]), jnp.array([0.4])
+    closed = jax.make_jaxpr(lambda q, qd, u: lg.forward_dynamics(chain, q, qd, u))(q, qd, u)
+    assert not closed.consts  # no parameter array captured as a run-time constant
+    assert len(live_eqns(closed.jaxpr)) < Traced(chain).total()
+    folded = jax.jit(lambda q, qd, u: lg.forward_dynamics(chain, q, qd, u))(q, qd, u)
+    as_inputs = jax.jit(lg.forward_dynamics)(chain, q, qd, u)
+    assert jnp.allclose(folded, as_inputs, rtol=1e-14, atol=0.0)
+    dmass = jax.grad(lambda c: lg.forward_dynamics(c, q, qd, u)[1])(chain).mass
+    h = 1e-6
+    fd = []
+    for k in range(chain.n):
+        plus = eqx_replace_mass(chain, k, h)
+        minus = eqx_replace_mass(chain, k, -h)
+        fd.append((lg.forward_dynamics(plus, q, qd, u)[1] - lg.forward_dynamics(minus, q, qd, u)[1]) / (2 * h))
+    assert jnp.allclose(dmass, jnp.array(fd), rtol=1e-7, atol=1e-9), (dmass, fd)
+
+
+def eqx_replace_mass(chain, k, h):
+    import equinox as eqx
+
+    return eqx.tree_at(lambda c: c.mass, chain, chain.mass.at[k].add(h))
+
+
+def test_symbolic_signs_are_exact():
+    """``lagrange._scalar`` keeps signs symbolic. Negation commutes exactly with IEEE rounding, so every combination
+    of ``negated``, ``neg``, ``add``, ``sub``, ``mul`` and ``div`` over constants, arrays and negated arrays, two levels
+    deep and materialised by ``as_array``, equals the same arithmetic done eagerly with ``jax.numpy`` to the last bit
+    (not NumPy's: XLA divides by a constant as a multiplication by its reciprocal)."""
+    import itertools
+
+    import numpy as np
+
+    from lagrange import _scalar as s
+
+    rng = np.random.default_rng(0)
+    x, y = jnp.asarray(rng.standard_normal(7)), jnp.asarray(rng.standard_normal(7) + 3.0)
+    leaves = [(x, x), (y, y), (2.5, 2.5), (-1.0, -1.0), (1.0, 1.0), (0.0, 0.0),
+              (s.negated(x), -x), (s.negated(y), -y), (s.neg(y), -y)]
+    ops = [(s.add, jnp.add), (s.sub, jnp.subtract), (s.mul, jnp.multiply), (s.div, jnp.divide)]
+    level1 = []
+    for (a, na), (b, nb) in itertools.product(leaves, repeat=2):
+        for f, nf in ops:
+            if not (f is s.div and np.all(nb == 0.0)):
+                level1.append((f(a, b), nf(na, nb)))
+    level1 += [(s.negated(r), -nr) for r, nr in level1[::7]] + [(s.neg(r), -nr) for r, nr in level1[3::7]]
+    checked = 0
+    for (a, na), (b, nb) in itertools.product(level1[::5], leaves):
+        for f, nf in ops:
+            if f is s.div and np.any(np.asarray(nb) == 0.0):
+                continue
+            got = np.asarray(s.as_array(f(a, b), like=x))
+            want = np.broadcast_to(np.asarray(nf(na, nb), dtype=np.float64), x.shape)
+            assert np.array_equal(got, want, equal_nan=True), (f.__name__, a, b)
+            checked += 1
+    assert checked > 1000
