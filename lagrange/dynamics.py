@@ -45,10 +45,10 @@ def _as_constant(x):
 def _folded(chain: Chain) -> Chain:
     """``chain`` with its concrete parameters as NumPy arrays, so that their products with each other are computed
     while tracing and reach XLA as literals. A chain closed over by a jitted function has concrete parameters, but
-    XLA receives them as run-time operands of the time-stepping loop: it neither folds them nor, on the CPU, always
-    vectorizes the fused step around them (measured: a batched RK4 rollout of the cartpole ran 1.5x slower,
-    ``benchmarks/derivation_overhead.py``). Parameters being differentiated or vmapped are tracers and stay as
-    they are."""
+    XLA receives them as run-time operands of the time-stepping loop: it does not fold them, and on the CPU they can
+    cost the fused step its vectorization (``python -m benchmarks.experiments.xla_vectorization``: the cartpole's
+    closed form 1.7-1.9x slower with its constants as arrays). Parameters being differentiated or vmapped are
+    tracers and stay as they are."""
     return jax.tree_util.tree_map(_as_constant, chain)
 
 
