@@ -24,7 +24,7 @@ from optim.ce_apg import CEAPGConfig  # noqa: E402
 # instead of the wrapped angles, whose 2 pi jump at every swing through hanging kept every run we tried stuck at 347.
 CONFIG = CEAPGConfig.laptop("acrobot")
 # --quick: the default protocol cut to 45 iterations (5.4e7 env steps, the learning-rate schedule compressed to
-# match): about two minutes on two CPU cores; seed 0 reaches 1838 (a swing-up under way, not yet balanced).
+# match): about two minutes on two CPU cores; seed 0 reaches 1128 (a swing-up under way, not yet balanced).
 QUICK = CONFIG.with_iterations(45)
 
 if __name__ == "__main__":

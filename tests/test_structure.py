@@ -245,13 +245,13 @@ def test_concrete_parameters_are_folded():
     h = 1e-6
     fd = []
     for k in range(chain.n):
-        plus = eqx_replace_mass(chain, k, h)
-        minus = eqx_replace_mass(chain, k, -h)
+        plus = _bump_mass(chain, k, h)
+        minus = _bump_mass(chain, k, -h)
         fd.append((lg.forward_dynamics(plus, q, qd, u)[1] - lg.forward_dynamics(minus, q, qd, u)[1]) / (2 * h))
     assert jnp.allclose(dmass, jnp.array(fd), rtol=1e-7, atol=1e-9), (dmass, fd)
 
 
-def eqx_replace_mass(chain, k, h):
+def _bump_mass(chain, k, h):
     import equinox as eqx
 
     return eqx.tree_at(lambda c: c.mass, chain, chain.mass.at[k].add(h))
