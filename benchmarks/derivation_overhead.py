@@ -98,18 +98,24 @@ def _time(f, args, calls: int = 1):
     return (time.perf_counter() - t0) / calls
 
 
+def inputs(q_init, batch: int):
+    """The rollouts' inputs: ``(q0, qd0, us)``, float32, ``q0`` within 0.01 of ``q_init``, controls N(0, 0.3^2)."""
+    n = len(q_init)
+    rng = np.random.default_rng(0)
+    q0 = jnp.asarray(np.asarray(q_init)[None] + 0.01 * rng.standard_normal((batch, n)), jnp.float32)
+    qd0 = jnp.zeros((batch, n), jnp.float32)
+    us = jnp.asarray(0.3 * rng.standard_normal((STEPS, batch, 1)), jnp.float32)
+    return q0, qd0, us
+
+
 def run(repeats: int, batches, systems):
     rows = []
     for name in systems:
         make_chain, closed, q_init = SYSTEMS[name]
         chain = make_chain()
         variants = _variants(chain, closed)
-        n = chain.n
         for batch in batches:
-            rng = np.random.default_rng(0)
-            q0 = jnp.asarray(np.asarray(q_init)[None] + 0.01 * rng.standard_normal((batch, n)), jnp.float32)
-            qd0 = jnp.zeros((batch, n), jnp.float32)
-            us = jnp.asarray(0.3 * rng.standard_normal((STEPS, batch, 1)), jnp.float32)
+            q0, qd0, us = inputs(q_init, batch)
             for mode in ("forward", "gradient"):
                 fns, compile_s, times = {}, {}, {}
                 for v, roll in variants.items():

@@ -41,6 +41,7 @@ def measure(rows: str, repeats: int) -> list[dict]:
         make_chain, closed, q_init = do.SYSTEMS[name]
         variants = do._variants(make_chain(), closed)
         fns = {v: do._build(variants[v], mode) for v in ("lagrange", "closed form")}
+        # derivation_overhead.inputs, written out: the old revision's module may predate it
         n = len(q_init)
         rng = np.random.default_rng(0)
         q0 = jnp.asarray(np.asarray(q_init)[None] + 0.01 * rng.standard_normal((batch, n)), jnp.float32)

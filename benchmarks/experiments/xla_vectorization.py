@@ -35,7 +35,7 @@ import numpy as np
 
 import lagrange as lg
 from benchmarks import closed_form as cf
-from benchmarks.derivation_overhead import DT, STEPS, _build
+from benchmarks.derivation_overhead import DT, SYSTEMS, _build, inputs
 
 
 def _cartpole(p, q, qd, u, sign):
@@ -86,14 +86,6 @@ def kernels(name: str, batch: int) -> str:
     return f"{vectorized} of {len(texts)} fusion kernels vectorized, {reloads} reload the loop index"
 
 
-def _inputs(batch):
-    rng = np.random.default_rng(0)
-    q0 = jnp.asarray(np.array([0.1, 0.3])[None] + 0.01 * rng.standard_normal((batch, 2)), jnp.float32)
-    qd0 = jnp.zeros((batch, 2), jnp.float32)
-    us = jnp.asarray(0.3 * rng.standard_normal((STEPS, batch, 1)), jnp.float32)
-    return q0, qd0, us
-
-
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--batch", type=int, default=1024)
@@ -101,7 +93,7 @@ def main(argv=None):
     p.add_argument("--kernels", action="store_true", help="also report the vectorized kernels of each variant")
     p.add_argument("--compile-only", metavar="VARIANT", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
-    q0, qd0, us = _inputs(args.batch)
+    q0, qd0, us = inputs(SYSTEMS["cartpole"][2], args.batch)
     if args.compile_only:
         jax.block_until_ready(_build(variants()[args.compile_only], "forward")(q0, qd0, us))
         return
