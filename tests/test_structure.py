@@ -7,6 +7,7 @@ code is removed (as XLA would), and the remaining equations are counted by primi
 
 import collections
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import pytest
@@ -214,15 +215,15 @@ def test_no_negation_reaches_xla(name):
     the compiled batched RK4 rollout. A negate in a fused RK4 stage can cost it its vectorization on the CPU
     (``python -m benchmarks.experiments.xla_vectorization``: the cartpole's closed form 1.5-1.9x slower with one)."""
     chain = STRUCTURES[name]
-    assert Traced(chain).counts["neg"] == 0, dict(Traced(chain).counts)
+    counts = Traced(chain).counts
+    assert counts["neg"] == 0, dict(counts)
     n, m = chain.n, chain.m
-    rollout = jax.jit(jax.vmap(lambda q, qd, us: lg.simulate(chain, q, qd, us, 0.01).q))
-    us = jnp.zeros((4, 3, m)) if m else None
-    if us is None:
-        rollout = jax.jit(jax.vmap(lambda q, qd: lg.simulate(chain, q, qd, None, 0.01, steps=3).q))
-        hlo = rollout.lower(jnp.zeros((4, n)), jnp.zeros((4, n))).compile().as_text()
+    states = (jnp.zeros((4, n)), jnp.zeros((4, n)))
+    if m:  # 4 rollouts of 3 steps
+        roll, args = (lambda q, qd, us: lg.simulate(chain, q, qd, us, 0.01).q), (*states, jnp.zeros((4, 3, m)))
     else:
-        hlo = rollout.lower(jnp.zeros((4, n)), jnp.zeros((4, n)), us).compile().as_text()
+        roll, args = (lambda q, qd: lg.simulate(chain, q, qd, None, 0.01, steps=3).q), states
+    hlo = jax.jit(jax.vmap(roll)).lower(*args).compile().as_text()
     assert " negate(" not in hlo
     # positive control: the search finds a negate where one is written
     control = jax.jit(jax.vmap(lambda q: -jnp.sin(q))).lower(jnp.zeros((4, n))).compile().as_text()
@@ -252,8 +253,6 @@ def test_concrete_parameters_are_folded():
 
 
 def _bump_mass(chain, k, h):
-    import equinox as eqx
-
     return eqx.tree_at(lambda c: c.mass, chain, chain.mass.at[k].add(h))
 
 
