@@ -1,10 +1,11 @@
-"""Three changes to CE-APG on the balance-only acrobot, none of which teaches it to hold the arm up.
+"""Changes to CE-APG on the balance-only acrobot (three objectives, two normalisers), none of which teaches it to hold.
 
     python -m benchmarks.experiments.acrobot_balance_patches --patch none --seed 0        # about 2 minutes each
     python -m benchmarks.experiments.acrobot_balance_patches --patch terminal --seed 0
     python -m benchmarks.experiments.acrobot_balance_patches --patch select1000 --seed 0
     python -m benchmarks.experiments.acrobot_balance_patches --patch none --curriculum --seed 0   # 100 -> ... -> 500
     python -m benchmarks.experiments.acrobot_balance_patches --patch unwrapped --curriculum --seed 0
+    python -m benchmarks.experiments.acrobot_balance_patches --norm upright [--curriculum] --seed 0
 
 The setting is ``benchmarks.balance_horizon``'s (rods unless ``--bodies``; every training episode starts upright;
 the laptop protocol for 60 iterations): 100-step training episodes, or with ``--curriculum`` its curriculum 100 -> 150
@@ -18,6 +19,11 @@ the laptop protocol for 60 iterations): 100-step training episodes, or with ``--
   post-APG parameters instead of its last batch returns (the gradient unchanged);
 - ``unwrapped``: the training reward (gradient and fitness) is the paper's with *unwrapped* angles,
   ``10 - sum (q - offset)^2 - 0.01 sum dq^2``, so a full turn costs ``(2 pi)^2`` per step instead of nothing.
+
+``--norm`` sets the observation normaliser: ``running`` (the library's: running mean and variance of every
+observation seen, so early falls widen it for good), ``none`` (raw observations), or ``upright`` (frozen at mean 0 and
+standard deviations of 0.05 for the angles (or their sines and cosines) and 0.5 rad/s for the velocities: 0.02 rad, the edge of the saturated
+LQR's basin, is 0.4 normalised units; beyond 0.25 rad the inputs clip at +-5).
 
 Evaluation is the paper's task from 16 upright starts (key ``10_000 + seed``, as ``balance_horizon``) over 500 steps:
 printed are the best policy's mean return and the episodes balanced.
@@ -37,9 +43,30 @@ from benchmarks.experiments._apg import apg_steps_with, paper_objective
 from optim._loop import run
 from lagrange.tasks import wrap
 from optim.apg import episode
+from policies import Normalizer
 
 PATCHES = ("none", "terminal", "select1000", "unwrapped")
+NORMS = ("running", "none", "upright")
 CURRICULUM = (100, 150, 200, 300, 400)
+
+
+class FrozenNormalizer(Normalizer):
+    """A normaliser whose statistics never change: ``update`` returns it unchanged."""
+
+    def update(self, obs) -> "FrozenNormalizer":
+        return self
+
+
+def upright_normalizer(trig: bool, angle_std: float = 0.05, velocity_std: float = 0.5) -> FrozenNormalizer:
+    """Frozen at the upright observation: ``(th, dth)``, or ``(sin th, cos th, dth)`` with ``trig`` (the laptop
+    preset's), the angle terms (sines and cosines alike) scaled by ``angle_std``, the velocities by ``velocity_std``."""
+    if trig:
+        mean = jnp.array([0.0, 0.0, 1.0, 1.0, 0.0, 0.0])
+        std = jnp.array([angle_std] * 4 + [velocity_std] * 2)
+    else:
+        mean = jnp.zeros(4)
+        std = jnp.array([angle_std] * 2 + [velocity_std] * 2)
+    return FrozenNormalizer(mean, std**2, jnp.asarray(1.0))
 
 
 def _offset(n):
@@ -81,6 +108,7 @@ def main(argv=None):
     p.add_argument("--curriculum", action="store_true", help="100 -> 150 -> 200 -> 300 -> 400 -> 500 steps")
     p.add_argument("--iterations", type=int, default=60)
     p.add_argument("--bodies", default="rods", choices=("rods", "brax_v1"))
+    p.add_argument("--norm", default="running", choices=NORMS, help="observation normaliser (module docstring)")
     args = p.parse_args(argv)
     if args.patch == "terminal":
         ce_apg.apg_steps = apg_steps_with(terminal_objective)
@@ -90,13 +118,19 @@ def main(argv=None):
         ce_apg.apg_steps = select_by_forward()
     cfg = (config("acrobot", 500, args.iterations, CURRICULUM, args.bodies) if args.curriculum
            else config("acrobot", 100, args.iterations, (), args.bodies))
+    if args.norm == "none":
+        cfg = dataclasses.replace(cfg, normalize=False)
     trainer = ce_apg.make_trainer(cfg)
+    if args.norm == "upright":
+        base_init = trainer.init
+        trainer = trainer._replace(init=lambda key: base_init(key)._replace(
+            normalizer=upright_normalizer(cfg.trig_observation), best_normalizer=upright_normalizer(cfg.trig_observation)))
     t0 = time.perf_counter()
     state, history = run(trainer, jax.random.PRNGKey(args.seed), iterations=cfg.iterations, progress=False,
                          seed=args.seed)
     policy, norm = trainer.policy(state)
     up = dataclasses.replace(trainer.task, upright=1.0, horizon=500)
-    out = {"patch": args.patch, "curriculum": args.curriculum, "seed": args.seed, "bodies": args.bodies,
+    out = {"patch": args.patch, "norm": args.norm, "curriculum": args.curriculum, "seed": args.seed, "bodies": args.bodies,
            "iterations": cfg.iterations, "seconds": round(time.perf_counter() - t0),
            "best_candidate_return": float(history[-1]["best_return"]),
            **evaluate(up, policy, norm, jax.random.PRNGKey(10_000 + args.seed))}
