@@ -3,14 +3,16 @@
     python examples/cartpole_swingup.py --out runs/cartpole_swingup        # the example's default run (about 90 s)
     python -m benchmarks.experiments.cartpole_hold --checkpoint runs/cartpole_swingup/checkpoint.eqx
 
-Loads the example's checkpoint, runs ``--policy`` (the CE mean, default, or the best candidate; the example reports
-the one its ``results.json`` names under ``policy``) from the 16 evaluation starts of ``benchmarks/paper_tables.py``
+Loads the example's checkpoint, runs ``--policy`` (the CE mean or the best candidate; by default the one the
+example reports, named under ``policy`` in the ``results.json`` beside the checkpoint, else the mean) from the 16 evaluation starts of ``benchmarks/paper_tables.py``
 for seed 0 (key 10_000), and prints the mean return, the range of the cart's final position, and, after
 ``--from-step``, the fraction of control steps at which the force changes sign, its mean magnitude (in units of the
 100 N gear) and the pole's largest distance from upright.
 """
 
 import argparse
+import json
+import os
 
 import jax
 import numpy as np
@@ -23,9 +25,16 @@ from optim.apg import episode
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--checkpoint", default="runs/cartpole_swingup/checkpoint.eqx")
-    p.add_argument("--policy", choices=("mean", "best"), default="mean")
+    p.add_argument("--policy", choices=("mean", "best"), default=None,
+                   help="default: results.json's 'policy' beside the checkpoint, else mean")
     p.add_argument("--from-step", type=int, default=200)
     args = p.parse_args(argv)
+    if args.policy is None:
+        results = os.path.join(os.path.dirname(args.checkpoint), "results.json")
+        args.policy = "mean"
+        if os.path.exists(results):
+            with open(results) as f:
+                args.policy = json.load(f).get("policy", "mean")
     trainer, state = ce_apg.load_checkpoint(args.checkpoint)
     policy, norm = trainer.policy(state, args.policy)
     keys = jax.random.split(jax.random.PRNGKey(10_000), 16)
@@ -34,8 +43,8 @@ def main(argv=None):
     a = np.asarray(eps.actions[:, args.from_step:, 0])
     flips = np.mean(np.sign(a[:, 1:]) != np.sign(a[:, :-1]))
     th = np.asarray(upright_error(trainer.task, eps.q[:, args.from_step:]))
-    print(f"return {float(np.mean(eps.ret)):.1f}; final cart x {x.min():.1f} to {x.max():.1f} m; after step "
-          f"{args.from_step}: force changes sign at {flips:.0%} of steps, mean |a| {np.abs(a).mean():.2f}, pole within "
+    print(f"{args.policy} policy: return {float(np.mean(eps.ret)):.1f}; final cart x {x.min():.1f} to {x.max():.1f} m; after step "
+          f"{args.from_step}: force changes sign at {flips:.0%} of steps, mean |a| {np.abs(a).mean():.2g} (max {np.abs(a).max():.2g}), pole within "
           f"{th.max():.3f} rad of upright")
 
 
