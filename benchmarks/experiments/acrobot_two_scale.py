@@ -7,8 +7,9 @@ The laptop protocol (``CEAPGConfig.laptop("acrobot")``, rods unless ``--bodies``
 input is the library's running-normalised observation *and* the same observation normalised by the frozen upright
 scale of ``acrobot_balance_patches --norm upright`` (mean at upright, 0.05 for the sines and cosines, 0.5 rad/s for
 the velocities, clipped to +-5), concatenated: 12 inputs instead of 6, and so (the authors' layout: GRU hidden size =
-input size) a GRU hidden state of 12. Near upright the running statistics, fitted over the whole swing-up, resolve
-0.02 rad as about 0.01 normalised units; the upright scale as 0.4.
+input size) a GRU hidden state of 12. The running statistics are fitted over the whole swing-up, so near upright they
+resolve a lean of 0.02 rad as a few hundredths of a unit (printed for the run's final normaliser); the upright scale
+as 0.4.
 
 Printed: the final best policy's evaluation as in ``benchmarks.paper_tables`` (16 episodes from the fixed random
 hanging starts of key ``10_000 + seed``: mean return and episodes balanced), the same from 16 upright starts, and the
@@ -79,7 +80,9 @@ def main(argv=None):
     policy, norm = trainer.policy(state)
     out = {"seed": args.seed, "bodies": args.bodies, "iterations": cfg.iterations,
            "cpu_devices": args.cpu_devices, "seconds": round(seconds),
-           "best_candidate_return": float(history[-1]["best_return"])}
+           "best_candidate_return": float(history[-1]["best_return"]),
+           # the first two observations are the links' angles or (trig) their sines: both ~ the lean near upright
+           "running_units_per_0.02_rad": [round(float(u), 4) for u in 0.02 / jnp.sqrt(norm.wide.var[:2])]}
     for name, task in (("hanging", trainer.task), ("upright", dataclasses.replace(trainer.task, upright=1.0))):
         rets, bal = jax.jit(lambda k, t=task: evaluate(t, policy, norm, k, 16))(jax.random.PRNGKey(10_000 + args.seed))
         out[name] = {"return": round(float(jnp.mean(rets)), 1), "balanced_of_16": int(jnp.sum(bal))}

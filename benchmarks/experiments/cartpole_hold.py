@@ -4,10 +4,10 @@
     python -m benchmarks.experiments.cartpole_hold --checkpoint runs/cartpole_swingup/checkpoint.eqx
 
 Loads the example's checkpoint, runs ``--policy`` (the CE mean or the best candidate; by default the one the
-example reports, named under ``policy`` in the ``results.json`` beside the checkpoint, else the mean) from the 16 evaluation starts of ``benchmarks/paper_tables.py``
-for seed 0 (key 10_000), and prints the mean return, the range of the cart's final position, and, after
-``--from-step``, the fraction of control steps at which the force changes sign, its mean magnitude (in units of the
-100 N gear) and the pole's largest distance from upright.
+example reports, named under ``policy`` in the ``results.json`` beside the checkpoint, else the mean) from the 16
+evaluation starts of ``benchmarks/paper_tables.py`` for seed 0 (key 10_000), and prints the mean return, the range
+of the cart's final position, and, after ``--from-step``, the fraction of control steps at which the force changes
+sign, its mean and largest magnitude (in units of the 100 N gear) and the pole's largest distance from upright.
 """
 
 import argparse
@@ -43,9 +43,9 @@ def main(argv=None):
     a = np.asarray(eps.actions[:, args.from_step:, 0])
     flips = np.mean(np.sign(a[:, 1:]) != np.sign(a[:, :-1]))
     th = np.asarray(upright_error(trainer.task, eps.q[:, args.from_step:]))
-    print(f"{args.policy} policy: return {float(np.mean(eps.ret)):.1f}; final cart x {x.min():.1f} to {x.max():.1f} m; after step "
-          f"{args.from_step}: force changes sign at {flips:.0%} of steps, mean |a| {np.abs(a).mean():.2g} (max {np.abs(a).max():.2g}), pole within "
-          f"{th.max():.3f} rad of upright")
+    print(f"{args.policy} policy: return {float(np.mean(eps.ret)):.1f}; final cart x {x.min():.1f} to {x.max():.1f} m; "
+          f"after step {args.from_step}: force changes sign at {flips:.0%} of steps, mean |a| {np.abs(a).mean():.2g} "
+          f"(max {np.abs(a).max():.2g}), pole within {th.max():.3f} rad of upright")
 
 
 if __name__ == "__main__":
