@@ -74,15 +74,21 @@ def setup(args):
     return cfg, None
 
 
-def float64_run(cfg, task, theta, norm, key, lr):
-    """The diagnostic APG steps of one candidate in float64 (tasks, policy template and inputs rebuilt under x64)."""
+def float64_diagnostic(cfg, task):
+    """``run(theta, normalizer, key, lr)``: the diagnostic APG steps of one candidate in float64 (task and policy
+    template rebuilt under x64 once, so every call reuses one compilation; inputs cast to float64)."""
     with jax.enable_x64(True):
         task64 = ce_apg.build_task(cfg, task)
         _, unravel = flatten_policy(build_policy(cfg, task64, jax.random.PRNGKey(0)))
-        norm64 = jax.tree_util.tree_map(lambda x: jnp.asarray(x, jnp.float64), norm)
-        out = diagnostic_apg(task64, cfg, unravel)(jnp.asarray(theta, jnp.float64), norm64, key,
-                                                   jnp.asarray(lr, jnp.float64))
-        return tuple(np.asarray(x) for x in out)
+        run64 = diagnostic_apg(task64, cfg, unravel)
+
+    def run(theta, norm, key, lr):
+        with jax.enable_x64(True):
+            norm64 = jax.tree_util.tree_map(lambda x: jnp.asarray(x, jnp.float64), norm)
+            out = run64(jnp.asarray(theta, jnp.float64), norm64, key, jnp.asarray(lr, jnp.float64))
+            return tuple(np.asarray(x) for x in out)
+
+    return run
 
 
 def describe(ret, vmax, v_finite, g_finite, gmax):
@@ -117,6 +123,7 @@ def main(argv=None):
     trainer = ce_apg.make_trainer(cfg, task)
     _, unravel = flatten_policy(build_policy(cfg, trainer.task, jax.random.PRNGKey(0)))
     run = diagnostic_apg(trainer.task, cfg, unravel)
+    run64 = float64_diagnostic(cfg, task) if args.float64 else None
     state = trainer.init(jax.random.PRNGKey(args.seed))
     found = 0
     for it in range(args.iterations):
@@ -138,9 +145,8 @@ def main(argv=None):
                         finite_shown += 1
                     continue
                 print(f"   candidate {c}: {describe(*out)}", flush=True)
-                if args.float64:
-                    print(f"      float64: {describe(*float64_run(cfg, task, thetas[c], state.normalizer, keys[c], lr))}",
-                          flush=True)
+                if run64 is not None:
+                    print(f"      float64: {describe(*run64(thetas[c], state.normalizer, keys[c], lr))}", flush=True)
                 found += 1
         state = new
         if found >= args.max_found:
