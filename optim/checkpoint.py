@@ -25,18 +25,33 @@ class CheckpointError(ValueError):
 
 def save(path, state, *, config: dict, **header) -> None:
     """Atomically write ``state`` (a pytree of arrays) with ``config`` and any JSON-able ``header`` fields."""
-    path = os.fspath(path)
     head = {"format": FORMAT, "version": VERSION, "config": config, **header}
     buf = io.BytesIO()
     eqx.tree_serialise_leaves(buf, state)
+    _write_atomically(path, json.dumps(head).encode() + b"\n" + buf.getvalue(), prefix=".ckpt-")
+
+
+def write_text(path, text: str) -> None:
+    """Write ``text`` to ``path`` atomically (a kill mid-write leaves the old file, or none); the folder is created
+    if missing."""
+    _write_atomically(path, text.encode(), prefix=".write-")
+
+
+def write_json(path, obj, *, indent: int = 1) -> None:
+    """:func:`write_text` of ``obj`` as JSON: result files that a killed run never leaves half-written."""
+    write_text(path, json.dumps(obj, indent=indent))
+
+
+def _write_atomically(path, data: bytes, *, prefix: str) -> None:
+    """Write ``data`` to a temporary file beside ``path``, flush and fsync it, then ``os.replace`` it over ``path``."""
+    path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))
     os.makedirs(folder, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=".ckpt-", dir=folder)
+    fd, tmp = tempfile.mkstemp(prefix=prefix, dir=folder)
     try:
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the file an ordinary file's mode
         with os.fdopen(fd, "wb") as f:
-            f.write(json.dumps(head).encode() + b"\n")
-            f.write(buf.getvalue())
+            f.write(data)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
