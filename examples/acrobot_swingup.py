@@ -7,15 +7,8 @@
 Writes runs/acrobot_swingup/{checkpoint.eqx, results.json, learning_curve.png, swingup.png, swingup.gif}.
 """
 
-import os
-import sys
-
-sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-
-from _swingup import main  # noqa: E402
-
-from optim.ce_apg import CEAPGConfig  # noqa: E402
+from optim.ce_apg import CEAPGConfig
+from optim.cli import swingup_main
 
 # The paper's protocol is CEAPGConfig.paper("acrobot"): 24 candidates x 100 APG steps x 4 episodes x 500 steps per
 # iteration, 200 iterations (about 1e9 env steps). The default, CEAPGConfig.laptop("acrobot"), is cut to fit two CPU
@@ -28,4 +21,4 @@ CONFIG = CEAPGConfig.laptop("acrobot")
 QUICK = CONFIG.with_iterations(45)
 
 if __name__ == "__main__":
-    main(__doc__.splitlines()[0], "runs/acrobot_swingup", CONFIG, QUICK, paper_return=3053.0)
+    swingup_main(__doc__.splitlines()[0], "runs/acrobot_swingup", CONFIG, QUICK, paper_return=3053.0)

@@ -1,23 +1,18 @@
 """Swing a cartpole up and balance it (Table I's "Pendulum"): a GRU policy trained by CE-APG.
 
     python examples/cartpole_swingup.py [--quick] [--seed S] [--iterations N] [--out DIR] [--resume]
+
+Writes runs/cartpole_swingup/{checkpoint.eqx, results.json, learning_curve.png, swingup.png, swingup.gif}.
 """
 
-import os
-import sys
-
-sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-
-from _swingup import main  # noqa: E402
-
-from optim.ce_apg import CEAPGConfig  # noqa: E402
+from optim.ce_apg import CEAPGConfig
+from optim.cli import swingup_main
 
 # Paper protocol: CEAPGConfig.paper("cartpole"). The default, CEAPGConfig.laptop("cartpole"), is cut to fit two CPU
-# cores (see its docstring and the README).
+# cores (see its docstring).
 CONFIG = CEAPGConfig.laptop("cartpole")
 QUICK = CEAPGConfig(task="cartpole", num_candidates=8, num_elites=3, iterations=8, apg_steps=10, episodes=2,
                     lr_start=1e-2, lr_end=1e-3, init_std=0.15)
 
 if __name__ == "__main__":
-    main(__doc__.splitlines()[0], "runs/cartpole_swingup", CONFIG, QUICK, paper_return=-355.0)
+    swingup_main(__doc__.splitlines()[0], "runs/cartpole_swingup", CONFIG, QUICK, paper_return=-355.0)

@@ -5,19 +5,14 @@ are motorised (the wrist is passive). Observations, reward and balance criterion
 (``lagrange.tasks.chain_swingup``).
 
     python examples/custom_chain.py [--quick] [--seed S] [--iterations N] [--out DIR] [--resume]
+
+Writes runs/custom_chain/{checkpoint.eqx, results.json, learning_curve.png, swingup.png, swingup.gif}.
 """
 
-import os
-import sys
-
-sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-
-from _swingup import main  # noqa: E402
-
-from lagrange.chain import Chain, Link  # noqa: E402
-from lagrange.tasks import chain_swingup  # noqa: E402
-from optim.ce_apg import CEAPGConfig  # noqa: E402
+from lagrange.chain import Chain, Link
+from lagrange.tasks import chain_swingup
+from optim.ce_apg import CEAPGConfig
+from optim.cli import swingup_main
 
 
 def make_task():
@@ -31,7 +26,7 @@ def make_task():
         gravity=9.81,
     )
     # one RK4 step per 0.02 s interval: within 5e-5 of Dopri8 along the trained policy's episodes (|qd| <= 6.4 rad/s);
-    # far less accurate past 20 rad/s, where some random candidates go non-finite and are dropped (README, footnote §)
+    # far less accurate past 20 rad/s, where some random candidates go non-finite and are dropped
     return chain_swingup(chain, dt=0.02, horizon=250)
 
 
@@ -41,4 +36,4 @@ QUICK = CEAPGConfig(task="custom", num_candidates=8, num_elites=3, iterations=8,
                     horizon=250, lr_start=1e-2, lr_end=1e-3, init_std=0.15)
 
 if __name__ == "__main__":
-    main(__doc__.splitlines()[0], "runs/custom_chain", CONFIG, QUICK, task=make_task)
+    swingup_main(__doc__.splitlines()[0], "runs/custom_chain", CONFIG, QUICK, task=make_task)

@@ -1,23 +1,18 @@
 """Swing a double cartpole up and balance it: a GRU policy (H = 32) trained by CE-APG.
 
     python examples/double_cartpole_swingup.py [--quick] [--seed S] [--iterations N] [--out DIR] [--resume]
+
+Writes runs/double_cartpole_swingup/{checkpoint.eqx, results.json, learning_curve.png, swingup.png, swingup.gif}.
 """
 
-import os
-import sys
+from optim.ce_apg import CEAPGConfig
+from optim.cli import swingup_main
 
-sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-
-from _swingup import main  # noqa: E402
-
-from optim.ce_apg import CEAPGConfig  # noqa: E402
-
-# Paper protocol: CEAPGConfig.paper("double_cartpole"). The default, CEAPGConfig.laptop("double_cartpole"), is cut to fit two CPU
-# cores (see its docstring and the README).
+# Paper protocol: CEAPGConfig.paper("double_cartpole"). The default, CEAPGConfig.laptop("double_cartpole"), is cut
+# to fit two CPU cores (see its docstring).
 CONFIG = CEAPGConfig.laptop("double_cartpole")
 QUICK = CEAPGConfig(task="double_cartpole", width=32, num_candidates=8, num_elites=3, iterations=8, apg_steps=10,
                     episodes=2, lr_start=1e-2, lr_end=1e-3, init_std=0.15)
 
 if __name__ == "__main__":
-    main(__doc__.splitlines()[0], "runs/double_cartpole_swingup", CONFIG, QUICK, paper_return=4295.0)
+    swingup_main(__doc__.splitlines()[0], "runs/double_cartpole_swingup", CONFIG, QUICK, paper_return=4295.0)

@@ -8,25 +8,15 @@ that balance, env steps, wall-clock, the config) and ``learning_curve.png`` (det
 return and the stochastic training episodes' return against simulated steps) to ``--out``.
 """
 
-from __future__ import annotations
-
 import argparse
 import dataclasses
 import os
-import sys
 
-import matplotlib
+import jax
 
-matplotlib.use("Agg")
-
-import jax  # noqa: E402
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # the repository root: benchmarks
-
-from benchmarks._files import write_json  # noqa: E402
-from optim import shac  # noqa: E402
+from optim import shac
+from optim.checkpoint import write_json
+from optim.cli import shac_learning_curve
 
 QUICK = dict(num_envs=32, epochs=150)
 
@@ -71,20 +61,8 @@ def main(argv=None) -> dict:
         "config": dataclasses.asdict(cfg),
     }
     write_json(os.path.join(args.out, "results.json"), results, indent=2)  # atomically: a kill leaves the old file
-
-    fig, ax = plt.subplots(figsize=(6, 4))
-    ax.plot([c["env_steps"] for c in curve], [c["return"] for c in curve], "o-", label="deterministic evaluation")
-    train = [(h["env_steps"], h["episode_return"]) for h in history if h["episodes"] > 0]
-    if train:
-        ax.plot(*np.array(train).T, lw=1, alpha=0.6, label="training episodes (stochastic)")
-    ax.set_xlabel("simulated environment steps")
-    ax.set_ylabel("episode return")
-    ax.set_title(f"SHAC on the authors' cartpole swing-up (seed {args.seed})")
-    ax.legend(loc="lower right", fontsize=8)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(os.path.join(args.out, "learning_curve.png"), dpi=120)
-    plt.close(fig)
+    shac_learning_curve(history, curve, os.path.join(args.out, "learning_curve.png"),
+                        title=f"SHAC on the authors' cartpole swing-up (seed {args.seed})")
     print(f"return {final['return']:.1f} +- {final['return_std']:.1f} over 16 episodes (untrained "
           f"{curve[0]['return']:.0f}), balanced in {final['balanced']:.0%}; {results['env_steps']:.2e} env steps, "
           f"{results['wall_clock_seconds']:.0f} s")

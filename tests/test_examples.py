@@ -1,28 +1,79 @@
-"""The main example end to end: a (shortened) --quick run writes every artefact and results.json has
-the documented fields (resume itself is tested on the same host loop in test_optim)."""
+"""The examples: on the public API only and one screen long; the main example end to end (a shortened --quick run
+writes every artefact and results.json has the documented fields; resume itself is tested on the same host loop in
+test_optim); every swing-up example offers the driver's flags; the SHAC example end to end."""
 
+import ast
 import json
 import os
 import subprocess
 import sys
 
+import pytest
 from PIL import Image
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+EXAMPLES = sorted(f for f in os.listdir(os.path.join(ROOT, "examples")) if f.endswith(".py"))
+SWINGUPS = ("acrobot_swingup.py", "cartpole_swingup.py", "double_cartpole_swingup.py", "custom_chain.py")
+MAX_LINES = 80
 
 
-def _run(*args, ok=True):
+def violations(source: str) -> list[str]:
+    """What keeps ``source`` from being an example: a ``sys.path`` use, a relative import, an import of a private
+    name (a part starting with ``_``, ``__future__`` aside) or from ``benchmarks``/``research``, more than 80 lines."""
+    found = []
+    if len(source.splitlines()) > MAX_LINES:
+        found.append(f"{len(source.splitlines())} lines > {MAX_LINES}")
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Attribute) and node.attr == "path" and getattr(node.value, "id", None) == "sys":
+            found.append(f"line {node.lineno}: sys.path")
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                found.append(f"line {node.lineno}: relative import")
+            if node.module == "__future__":
+                continue
+            names = [f"{node.module}.{a.name}" for a in node.names]
+        else:
+            continue
+        for name in names:
+            parts = name.split(".")
+            if parts[0] in ("benchmarks", "research") or any(part.startswith("_") for part in parts):
+                found.append(f"line {node.lineno}: import {name}")
+    return found
+
+
+def test_examples_use_the_public_api_only_and_fit_one_screen():
+    assert len(EXAMPLES) >= 6 and set(SWINGUPS) <= set(EXAMPLES), EXAMPLES
+    for name in EXAMPLES:
+        with open(os.path.join(ROOT, "examples", name)) as f:
+            assert violations(f.read()) == [], name
+
+
+def test_the_example_check_finds_each_violation():
+    bad = "import sys\nsys.path.insert(0, '.')\nfrom optim._loop import run\nimport benchmarks.throughput\n" \
+          "from research import LOG\nfrom . import x\nfrom optim import _private\n" + "pass\n" * 80
+    found = violations(bad)
+    for what in ("sys.path", "optim._loop.run", "benchmarks.throughput", "research.LOG", "relative import",
+                 "optim._private", "87 lines"):
+        assert any(what in v for v in found), (what, found)
+    assert violations("from __future__ import annotations\nimport optim\nfrom optim.cli import swingup_main\n") == []
+
+
+def _run(*args, ok=True, example="acrobot_swingup.py"):
     env = dict(os.environ, MPLBACKEND="Agg")
-    proc = subprocess.run([sys.executable, os.path.join(ROOT, "examples", "acrobot_swingup.py"), *args],
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "examples", example), *args],
                           capture_output=True, text=True, env=env, timeout=900)
     assert (proc.returncode == 0) == ok, proc.stderr[-3000:]
     return proc
 
 
-def test_help():
-    out = _run("--help").stdout
-    for flag in ("--seed", "--iterations", "--out", "--resume", "--quick", "--bodies"):
-        assert flag in out
+@pytest.mark.parametrize("example", SWINGUPS)
+def test_help(example):
+    out = _run("--help", example=example).stdout
+    for flag in ("--seed", "--iterations", "--out", "--resume", "--quick", "--no-progress", "--cpu-devices"):
+        assert flag in out, flag
+    assert ("--bodies" in out) == (example != "custom_chain.py")  # a chain of one's own has no Brax v1 bodies
 
 
 def test_quick_run_writes_every_artefact(tmp_path):

@@ -370,9 +370,8 @@ def test_make_train_is_one_jittable_function(tiny_trainer):
 
 _SHARDED = textwrap.dedent(
     """
-    import json, sys, jax
+    import json, jax
     jax.config.update("jax_enable_x64", True)
-    sys.path.insert(0, {root!r})
     from optim import ce_apg
     cfg = ce_apg.CEAPGConfig(task="acrobot", num_candidates=6, num_elites=2, iterations=2, apg_steps=2,
                              episodes=1, horizon=20, width=4, fitness_window=1, lr_start=1e-2, lr_end=1e-3)
@@ -380,8 +379,8 @@ _SHARDED = textwrap.dedent(
     s = tr.init(jax.random.PRNGKey(11))
     for _ in range(2):
         s, m = tr.update(s)
-    print(json.dumps({{"devices": len(jax.devices()), "mean": s.mean.tolist(), "std": s.std.tolist(),
-                      "best": s.best.tolist(), "fitness": float(m["best_return"])}}))
+    print(json.dumps({"devices": len(jax.devices()), "mean": s.mean.tolist(), "std": s.std.tolist(),
+                      "best": s.best.tolist(), "fitness": float(m["best_return"])}))
     """
 )
 
@@ -391,8 +390,8 @@ def test_sharded_equals_single_device():
     outs = []
     for flags in ("--xla_force_host_platform_device_count=4", ""):
         env = dict(os.environ, XLA_FLAGS=flags, JAX_PLATFORMS="cpu")
-        proc = subprocess.run([sys.executable, "-c", _SHARDED.format(root=ROOT)], capture_output=True, text=True,
-                              env=env, timeout=600)
+        proc = subprocess.run([sys.executable, "-c", _SHARDED], capture_output=True, text=True, env=env, cwd=ROOT,
+                              timeout=600)
         assert proc.returncode == 0, proc.stderr[-3000:]
         outs.append(json.loads(proc.stdout.strip().splitlines()[-1]))
     four, one = outs
@@ -418,8 +417,7 @@ def test_papg_keeps_the_best_run():
 
 _CORES = textwrap.dedent(
     """
-    import json, sys, warnings
-    sys.path.insert(0, {root!r})
+    import json, warnings
     import jax, jax.numpy as jnp
     import optim
     from optim.devices import use_cpu_cores
@@ -429,7 +427,7 @@ _CORES = textwrap.dedent(
     with warnings.catch_warnings(record=True) as w:
         warnings.simplefilter("always")
         again = use_cpu_cores(5)
-    print(json.dumps({{"got": got, "devices": n, "again": again, "warned": [str(x.message) for x in w]}}))
+    print(json.dumps({"got": got, "devices": n, "again": again, "warned": [str(x.message) for x in w]}))
     """
 )
 
@@ -437,8 +435,8 @@ _CORES = textwrap.dedent(
 def test_use_cpu_cores_splits_the_host_before_jax_starts():
     env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
     env["JAX_PLATFORMS"] = "cpu"
-    proc = subprocess.run([sys.executable, "-c", _CORES.format(root=ROOT)], capture_output=True, text=True,
-                          env=env, timeout=300)
+    proc = subprocess.run([sys.executable, "-c", _CORES], capture_output=True, text=True, env=env, cwd=ROOT,
+                          timeout=300)
     assert proc.returncode == 0, proc.stderr[-3000:]
     out = json.loads(proc.stdout.strip().splitlines()[-1])
     assert (out["got"], out["devices"], out["again"]) == (3, 3, 3)

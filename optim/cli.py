@@ -1,7 +1,27 @@
-"""The command-line driver behind the swing-up examples: train with CE-APG, then write the artefacts.
+"""The command-line driver the swing-up examples use: flags, training, evaluation and the artefacts.
 
-Writes to ``--out``: ``checkpoint.eqx`` (equinox serialisation + JSON header, written atomically every
-iteration), ``results.json``, ``learning_curve.png``, ``swingup.png`` and ``swingup.gif``.
+:func:`swingup_main` parses the flags (``--seed --iterations --out --resume --quick --no-progress --cpu-devices``, and
+``--bodies`` for a paper task), trains CE-APG with a progress bar and an atomic checkpoint after every iteration
+(``--resume`` continues it), evaluates the better of the best candidate and the CE mean, and writes to ``--out``:
+
+- ``checkpoint.eqx``: the training state with a JSON header (config, seed, history), what ``--resume`` reads;
+- ``results.json``: the evaluation's return, balance, env steps, wall-clock, seed and config;
+- ``learning_curve.png``: the best, elite and all-candidates fitness against simulated steps (:func:`learning_curve`);
+- ``swingup.png``: one evaluation episode's angles, velocities and actuation (``lagrange.plotting``);
+- ``swingup.gif``: the same episode, animated.
+
+A new example is a config and one call:
+
+```python
+from optim.ce_apg import CEAPGConfig
+from optim.cli import swingup_main
+
+CONFIG = CEAPGConfig.laptop("cartpole")
+swingup_main("Swing a cartpole up.", "runs/cartpole", CONFIG, CONFIG.with_iterations(8))
+```
+
+:func:`shac_learning_curve` draws the SHAC example's curve. The pictures are drawn on ``matplotlib.figure.Figure``
+(no ``pyplot``): no backend is chosen, no window opened.
 """
 
 from __future__ import annotations
@@ -11,27 +31,24 @@ import dataclasses
 import os
 from typing import Callable
 
-import matplotlib
+import jax
+import numpy as np
 
-matplotlib.use("Agg")
+from lagrange.plotting import episode_animation, episode_figure
+from lagrange.tasks import BODIES, Task, balanced
+from optim import ce_apg, run
+from optim.apg import config_to_dict, episode, evaluate
+from optim.checkpoint import CheckpointError, write_json
+from optim.devices import cpu_core_count, use_cpu_cores
 
-import jax  # noqa: E402
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from benchmarks._files import write_json  # noqa: E402
-from lagrange.plotting import episode_animation, episode_figure  # noqa: E402
-from lagrange.tasks import BODIES, Task, balanced  # noqa: E402
-from optim import ce_apg  # noqa: E402
-from optim._loop import run  # noqa: E402
-from optim.apg import config_to_dict, episode, evaluate  # noqa: E402
-from optim.checkpoint import CheckpointError  # noqa: E402
-from optim.devices import cpu_core_count, use_cpu_cores  # noqa: E402
+__all__ = ["EVAL_EPISODES", "swingup_parser", "swingup_main", "learning_curve", "shac_learning_curve"]
 
 EVAL_EPISODES = 16
+"""Episodes (random starts) of the final evaluation, and of the selection between the best candidate and the mean."""
 
 
-def parse(description: str, default_out: str, argv=None, *, bodies: bool = True):
+def swingup_parser(description: str, default_out: str, *, bodies: bool = True) -> argparse.ArgumentParser:
+    """The examples' flags; ``bodies=False`` for an example that brings its own chain (no ``--bodies``)."""
     p = argparse.ArgumentParser(description=description, formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("--seed", type=int, default=0, help="PRNG seed (training and evaluation starts)")
     p.add_argument("--iterations", type=int, default=None,
@@ -45,14 +62,20 @@ def parse(description: str, default_out: str, argv=None, *, bodies: bool = True)
     if bodies:  # a paper task; an example that brings its own chain has no such choice
         p.add_argument("--bodies", choices=BODIES, default="rods",
                        help="the chain: this library's rods, or the bodies the authors simulated in Brax v1")
-    return p.parse_args(argv)
+    return p
 
 
-def main(description: str, default_out: str, config: ce_apg.CEAPGConfig, quick: ce_apg.CEAPGConfig,
-         task: Task | Callable[[], Task] | None = None, paper_return: float | None = None, argv=None) -> dict:
-    """Parse the flags, train, evaluate and write the artefacts. ``task``: a Task, or a function that builds
-    one (called after the CPU devices are set: building a chain runs JAX, which fixes the device count)."""
-    args = parse(description, default_out, argv, bodies=task is None)
+def swingup_main(description: str, default_out: str, config: ce_apg.CEAPGConfig, quick: ce_apg.CEAPGConfig, *,
+                 task: Task | Callable[[], Task] | None = None, paper_return: float | None = None,
+                 argv: list[str] | None = None) -> dict:
+    """Parse the flags (``argv``, default ``sys.argv[1:]``), train ``config`` (``quick`` with ``--quick``), evaluate,
+    write the artefacts to ``--out`` and return the contents of ``results.json``.
+
+    ``task``: None for the config's paper task (then ``--bodies`` is offered), a Task, or a function that builds one
+    (called after the CPU devices are set: building a chain runs JAX, which fixes the device count).
+    ``paper_return``: the paper's CE-APG return, drawn on the learning curve and kept in ``results.json``.
+    Bad flags and a checkpoint that cannot be resumed exit with a one-line message (``SystemExit``)."""
+    args = swingup_parser(description, default_out, bodies=task is None).parse_args(argv)
     if args.cpu_devices < 1:
         raise SystemExit(f"--cpu-devices must be >= 1, got {args.cpu_devices}")
     cfg = quick if args.quick else config
@@ -124,8 +147,13 @@ def main(description: str, default_out: str, config: ce_apg.CEAPGConfig, quick: 
     return results
 
 
-def learning_curve(history, path, cfg, paper_return):
-    fig, ax = plt.subplots(figsize=(6, 4))
+def learning_curve(history: list[dict], path: str, cfg, paper_return: float | None = None) -> None:
+    """Draw a CE-APG run's ``history`` (from :func:`optim.run`) to ``path`` (PNG): the best candidate's, the elites'
+    and all finite candidates' fitness against simulated steps, and ``paper_return`` as a dashed line."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6, 4))
+    ax = fig.subplots()
     steps = np.array([h["env_steps"] for h in history])
     for key, label in (("best_return", "best candidate"), ("elite_return", "elite mean"),
                        ("mean_return", "all candidates (finite)")):
@@ -142,10 +170,31 @@ def learning_curve(history, path, cfg, paper_return):
         pad = 0.05 * max(hi - lo, 1.0)
         ax.set_ylim(lo - pad, hi + pad)
     ax.set_xlabel("simulated environment steps")
+    ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 0))  # 1e5 steps and more: no overlapping labels
     ax.set_ylabel("fitness (mean of last batch returns)")
     ax.set_title(f"CE-APG on {cfg.task}")
     ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
+
+
+def shac_learning_curve(history: list[dict], curve: list[dict], path: str, *, title: str) -> None:
+    """Draw a SHAC run (``history, curve`` from :func:`optim.shac.run`) to ``path`` (PNG): the deterministic
+    evaluations' return and the stochastic training episodes' return against simulated steps."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6, 4))
+    ax = fig.subplots()
+    ax.plot([c["env_steps"] for c in curve], [c["return"] for c in curve], "o-", label="deterministic evaluation")
+    train = [(h["env_steps"], h["episode_return"]) for h in history if h["episodes"] > 0]
+    if train:
+        ax.plot(*np.array(train).T, lw=1, alpha=0.6, label="training episodes (stochastic)")
+    ax.set_xlabel("simulated environment steps")
+    ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 0))  # 1e5 steps and more: no overlapping labels
+    ax.set_ylabel("episode return")
+    ax.set_title(title)
+    ax.legend(loc="lower right", fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
