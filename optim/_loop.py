@@ -1,4 +1,4 @@
-"""The host loop shared by the examples: jitted iterations, a tqdm bar, atomic checkpoints, resume."""
+"""The host loop, public as ``optim.run``: jitted iterations, a tqdm bar, atomic checkpoints, resume."""
 
 from __future__ import annotations
 
