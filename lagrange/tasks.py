@@ -75,7 +75,7 @@ from lagrange.integrate import step as _step
 from lagrange.solvers import RK4
 
 __all__ = ["TaskState", "Task", "control_step", "acrobot", "cartpole", "double_cartpole", "make_task", "TASKS",
-           "BODIES", "balanced", "upright_error", "wrap", "chain_swingup"]
+           "BODIES", "balanced", "leaves_upright", "upright_error", "wrap", "chain_swingup"]
 
 
 def wrap(angle):
@@ -279,6 +279,24 @@ def balanced(task: Task, q, *, fraction: float = 0.2, tolerance: float = 0.2):
     T = q.shape[-2]
     start = T - max(1, int(np.ceil(fraction * T)))
     return jnp.all(upright_error(task, q[..., start:, :]) <= tolerance, axis=-1)
+
+
+def leaves_upright(task: Task, q, *, tolerance: float, from_step: int = 0) -> np.ndarray:
+    """How long a hold lasts: per episode, the first step ``t >= from_step`` at which some pole is more than
+    ``tolerance`` rad from upright (:func:`upright_error`, as :func:`balanced` measures it), -1 where none is.
+
+    ``q`` is a trajectory of coordinates (T, n) (leading batch dims allowed), step ``t`` at ``q[..., t, :]``; a
+    non-finite step counts as having left. Returns a NumPy integer array of the batch shape (0-d for one episode).
+    """
+    q = jnp.asarray(q)
+    if q.ndim < 2 or q.shape[-1] != task.chain.n:
+        raise ValueError(f"leaves_upright: q must have shape (..., T, n = {task.chain.n}), got {q.shape}")
+    if not tolerance > 0:
+        raise ValueError(f"leaves_upright: tolerance must be > 0 (rad), got {tolerance!r}")
+    if not (isinstance(from_step, (int, np.integer)) and 0 <= from_step < q.shape[-2]):
+        raise ValueError(f"leaves_upright: from_step must be an integer in [0, T = {q.shape[-2]}), got {from_step!r}")
+    left = ~(np.asarray(upright_error(task, q))[..., from_step:] <= tolerance)
+    return np.where(left.any(axis=-1), from_step + left.argmax(axis=-1), -1)
 
 
 def upright_error(task: Task, q):

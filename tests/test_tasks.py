@@ -202,6 +202,37 @@ def test_balanced_on_synthetic_trajectories():
     np.testing.assert_array_equal(tasks.balanced(a, batch), [True, False])
 
 
+def test_leaves_upright_finds_the_first_step_past_the_tolerance():
+    """On built trajectories: the elbow bent 0.3 rad from step 12 (the second link 0.3 rad off), the first link
+    0.2 rad off from step 5; the tolerance is on each link's absolute orientation, as ``balanced`` measures it."""
+    task = tasks.acrobot()
+    q = np.tile([np.pi, 0.0], (2, 30, 1))
+    q[0, 12:, 1] = 0.3
+    q[1, 5:, 0] = np.pi - 0.2
+    got = tasks.leaves_upright(task, q, tolerance=0.25)
+    assert isinstance(got, np.ndarray) and np.issubdtype(got.dtype, np.integer)
+    np.testing.assert_array_equal(got, [12, -1])  # -1: never leaves
+    np.testing.assert_array_equal(tasks.leaves_upright(task, q, tolerance=0.25, from_step=20), [20, -1])
+    np.testing.assert_array_equal(tasks.leaves_upright(task, q, tolerance=0.1), [12, 5])
+    # the elbow bent back against a leaning shoulder keeps the second link upright: 0.2 rad off the first only
+    bent = np.tile([np.pi + 0.2, -0.2], (30, 1))
+    assert tasks.leaves_upright(task, bent, tolerance=0.25).shape == () and tasks.leaves_upright(
+        task, bent, tolerance=0.25) == -1
+    # the cartpole's cart is not a link; a non-finite step counts as having left
+    cart = np.tile([5.0, np.pi], (3, 4, 10, 1))
+    cart[1, 2, 7:, 1] = np.nan
+    want = np.full((3, 4), -1)
+    want[1, 2] = 7
+    np.testing.assert_array_equal(tasks.leaves_upright(tasks.cartpole(), cart, tolerance=0.1), want)
+    for kwargs, field in [({"tolerance": 0.0}, "tolerance"), ({"tolerance": -1.0}, "tolerance"),
+                          ({"from_step": -1}, "from_step"), ({"from_step": 30}, "from_step"),
+                          ({"from_step": 1.5}, "from_step")]:
+        with pytest.raises(ValueError, match=field):
+            tasks.leaves_upright(task, q, **{"tolerance": 0.25, **kwargs})
+    with pytest.raises(ValueError, match="q must"):
+        tasks.leaves_upright(task, q[..., :1], tolerance=0.25)
+
+
 def test_unknown_task_is_named():
     with pytest.raises(ValueError, match="task must be one of"):
         tasks.make_task("hopper")
