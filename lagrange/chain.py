@@ -1,6 +1,6 @@
 """Planar serial chains: links, joints and their physical parameters.
 
-Conventions (see also the README):
+Conventions (see also the docs' "Conventions" page):
 
 - The chain lives in the vertical x-z plane; gravity points along -z.
 - Every body frame has an origin ``p`` and an angle ``phi``. The link direction is

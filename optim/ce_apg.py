@@ -134,10 +134,9 @@ class CEAPGConfig(InnerAPGConfig):
         Acrobot: 24 candidates, 6 elites (paper 8), 50 APG steps (100) of 2 episodes (4), 150
         iterations (200), learning rate 1e-2 -> 1e-4 (1e-3 -> 1e-6), ``(sin th, cos th, dth)``
         observations (the paper's wrapped angles kept every run we tried at ~350): 1.8e8 env steps.
-        Cartpole: 8 elites, 25 APG steps of 2 episodes, 120 iterations (40 before 2026-11-25: 7 of 8
-        seeds balanced, against 8 of 8 at 120), 1e-2 -> 1e-4, initial std 0.15: 7.2e7 env steps. Double
-        cartpole: 8 elites, 25 APG steps of 2 episodes, 150 iterations, 1e-2 -> 1e-4, initial std 0.15,
-        H = 32 (9e7 env steps). Measured results are in the README.
+        Cartpole: 8 elites, 25 APG steps of 2 episodes, 120 iterations, 1e-2 -> 1e-4, initial std 0.15:
+        7.2e7 env steps. Double cartpole: 8 elites, 25 APG steps of 2 episodes, 150 iterations, 1e-2 -> 1e-4,
+        initial std 0.15, H = 32 (9e7 env steps). Measured results: the docs' "Reproducing the paper".
         """
         if task == "acrobot":
             base = dict(num_elites=6, iterations=150, apg_steps=50, episodes=2, lr_start=1e-2, lr_end=1e-4,

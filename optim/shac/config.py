@@ -64,7 +64,7 @@ class SHACConfig:
     critic_iterations: passes over the window's data per epoch [16].
     critic_minibatches: contiguous minibatches per pass [num_batch = 4].
     target_alpha: target critic soft update ``target = alpha target + (1 - alpha) critic`` [target_critic_alpha = 0.2].
-    actor_lr, critic_lr: initial Adam step sizes [1e-2, 1e-3], decayed linearly to lr_end [1e-5] [lr_schedule = linear].
+    actor_lr, critic_lr: initial Adam step sizes [1e-2, 1e-3], decayed linearly to lr_end [1e-5] (lr_schedule = linear).
     adam_b1, adam_b2, adam_eps: Adam's betas and epsilon [betas = (0.7, 0.95); PyTorch eps 1e-8].
     actor_grad_norm, critic_grad_norm: global gradient-norm clip, None = none [grad_norm = 1.0, truncate_grads].
     actor_units, critic_units: hidden widths of the ELU + LayerNorm MLPs [(64, 64), (64, 64)].
