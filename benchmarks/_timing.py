@@ -1,4 +1,4 @@
-"""Shared timing helper for the benchmarks: compile once, warm up, median of repeats."""
+"""Shared timing helper of the benchmarks: warm up, then the median (or minimum) of repeats."""
 
 from __future__ import annotations
 
@@ -11,13 +11,6 @@ import jax
 def block(x):
     """Wait for every array in a pytree."""
     return jax.block_until_ready(x)
-
-
-def compile_time(fn, *args) -> float:
-    """Seconds for the first call of a jitted ``fn`` (trace + compile + one run)."""
-    t = time.perf_counter()
-    block(fn(*args))
-    return time.perf_counter() - t
 
 
 def median_time(fn, *args, repeats: int = 5, min_time: float = 0.05, warmup: int = 1, best: bool = False) -> float:

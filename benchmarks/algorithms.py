@@ -1,6 +1,6 @@
 """CE-APG, SHAC, Brax PPO, Brax SAC and Brax APG on the paper's three tasks, on the same dynamics.
 
-    python -m benchmarks.algorithms --quick                          # smoke-scale budgets, seed 0
+    python -m benchmarks.algorithms --quick                          # smoke-scale budgets, seed 0 (runs/benchmarks/)
     python -m benchmarks.algorithms --budget laptop --tasks acrobot --algos shac ppo sac brax_apg --seeds 0
     python -m benchmarks.algorithms --budget laptop --algos ce_apg --ce-apg-from runs/paper_tables/laptop
     python -m benchmarks.algorithms --budget laptop --plot-only      # table and plots from the saved runs
@@ -41,8 +41,11 @@ benchmark resumes where it stopped (``--force`` redoes the selected runs). The t
 from every run file of the budget, selected now or earlier. Each run also records its process CPU seconds
 and the load average, since on a shared machine the wall-clock is inflated by other processes.
 
-Writes ``benchmarks/results/algorithms[_quick|_laptop].json`` and ``.md`` (table) and one
-``algorithms[_quick|_laptop]_<task>.png`` per task (curves against env steps and against wall-clock).
+Writes the table to ``benchmarks/results/algorithms_laptop[_brax_v1].json`` and ``.md`` and one plot per task to
+``docs/img/algorithms_laptop[_brax_v1]_<task>.png`` (curves against env steps and against wall-clock); the ``full``
+budget drops ``_laptop``; ``--quick`` writes ``algorithms_quick*`` under ``runs/benchmarks/``, not published.
+The published tables and plots are regenerated from the saved runs by ``--budget laptop --plot-only`` (and the same
+with ``--bodies brax_v1``).
 """
 
 from __future__ import annotations
@@ -62,11 +65,11 @@ import jax.numpy as jnp  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from benchmarks._cli import add_bodies_flag, bodies_marker, bodies_suffix, marked_bodies  # noqa: E402
-from benchmarks._files import write_json, write_text  # noqa: E402
+from benchmarks._cli import add_bodies_flag, bodies_marker, bodies_suffix, marked_bodies, outputs  # noqa: E402
 from lagrange.tasks import balanced, make_task  # noqa: E402
 from optim import ce_apg, shac  # noqa: E402
 from optim.apg import episode  # noqa: E402
+from optim.checkpoint import write_json, write_text  # noqa: E402
 
 TASKS = ("acrobot", "cartpole", "double_cartpole")
 ALGORITHMS = ("ce_apg", "shac", "ppo", "sac", "brax_apg")
@@ -372,7 +375,8 @@ def main(argv=None):
                         "training it")
     p.add_argument("--runs-dir", default="runs/algorithms", help="per-run result files go to RUNS_DIR/<budget>/")
     p.add_argument("--force", action="store_true", help="redo the selected runs even where a result file exists")
-    p.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "results"))
+    p.add_argument("--out", default=None, help="folder of the table and plots (default: benchmarks/results for the "
+                                               "table, docs/img for the plots; runs/benchmarks with --quick)")
     p.add_argument("--plot-only", action="store_true", help="only redo the table and plots from the saved runs")
     add_bodies_flag(p)
     args = p.parse_args(argv)
@@ -386,9 +390,9 @@ def main(argv=None):
     suffix = bodies_suffix(args.bodies)
     tag = TAGS[budget_name] + suffix
     runs_dir = os.path.join(args.runs_dir, budget_name + suffix)
-    os.makedirs(args.out, exist_ok=True)
+    out, img = (args.out, args.out) if args.out else outputs(budget_name == "quick")
     os.makedirs(runs_dir, exist_ok=True)
-    json_path = os.path.join(args.out, f"{tag}.json")
+    json_path = os.path.join(out, f"{tag}.json")
     if not any(f.endswith(".json") for f in os.listdir(runs_dir)) and os.path.exists(json_path):
         restored = restore_runs(json_path, runs_dir)  # runs/ is not in git: a fresh clone starts from the table
         print(f"restored {restored} run files into {runs_dir} from {json_path}")
@@ -423,20 +427,11 @@ def main(argv=None):
                         "machine": platform.platform(), "cpus": os.cpu_count(), "runs_dir": runs_dir},
                "runs": runs}
     write_json(json_path, results)
-    return write_outputs(results, args.out, tag)
-
-
-def write_outputs(results, out, tag):
     write_table(results, os.path.join(out, f"{tag}.md"))
+    os.makedirs(img, exist_ok=True)
     for name in results["runs"]:
-        plot_task(name, results["runs"][name], os.path.join(out, f"{tag}_{name}.png"), _budget_name(results),
-                  marked_bodies(results["meta"]))
+        plot_task(name, results["runs"][name], os.path.join(img, f"{tag}_{name}.png"), budget_name, args.bodies)
     return results
-
-
-def _budget_name(results):
-    meta = results["meta"]
-    return meta.get("budget") or ("quick" if meta.get("quick") else "full")
 
 
 def _cpu_share(runs):
@@ -451,7 +446,7 @@ def _bodies_sentence(results):
 
 
 def write_table(results, path):
-    budget = _budget_name(results)
+    budget = results["meta"]["budget"]
     what = {"quick": "QUICK smoke-scale budgets", "laptop": "LAPTOP budgets, cut from the paper's where noted",
             "full": "full budgets"}[budget]
     lines = [f"Final deterministic return over {EVAL_EPISODES} random starts, mean +- std over seeds ({what}); "

@@ -7,7 +7,7 @@ respect to all controls), it times, interleaved in one run:
 
 - ``lagrange``: ``lagrange.simulate(chain, ..., solver=RK4())`` with its defaults
   (non-finite check on, per-interval ``jax.checkpoint`` on),
-- ``closed form``: ``benchmarks/closed_form.py``, hand-written equations and RK4 in ``lax.scan``,
+- ``closed form``: ``tests/oracles/closed_form.py``, hand-written equations and RK4 in ``lax.scan``,
 - ``closed form + remat``: the same with ``jax.checkpoint`` around each interval, as a careful
   person would add once they measured it,
 - ``naive autodiff``: Hessians of the Lagrangian and ``jnp.linalg.solve``
@@ -17,13 +17,15 @@ Reported: median wall time over interleaved repeats, compile time, and the ratio
 ``lagrange / closed form`` and ``lagrange / (closed form + remat)``. Shared, noisy machines make
 absolute times drift; the ratios from one run are what to compare.
 
-    python benchmarks/derivation_overhead.py [--repeats 7] [--quick]
+    python -m benchmarks.derivation_overhead            # the table (also: python benchmarks/derivation_overhead.py)
+    python -m benchmarks.derivation_overhead --quick    # acrobot only, 3 repeats
+
+Writes ``benchmarks/results/derivation_overhead.{json,md}`` (``--quick``: ``runs/benchmarks/``, not published).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import time
@@ -35,8 +37,10 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 import lagrange as lg  # noqa: E402
-from benchmarks import closed_form as cf  # noqa: E402
+from benchmarks._cli import outputs  # noqa: E402
 from lagrange import euler_lagrange as el  # noqa: E402
+from optim.checkpoint import write_json, write_text  # noqa: E402
+from tests.oracles import closed_form as cf  # noqa: E402
 
 STEPS, DT = 500, 0.01
 SYSTEMS = {
@@ -177,19 +181,20 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeats", type=int, default=15)
     ap.add_argument("--quick", action="store_true", help="acrobot only, 3 repeats")
-    ap.add_argument("--out", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "results"))
+    ap.add_argument("--out", default=None, help="folder of the result files (default benchmarks/results, "
+                                                "runs/benchmarks with --quick)")
     args = ap.parse_args()
+    out = args.out or outputs(args.quick)[0]
     systems = ["acrobot"] if args.quick else list(SYSTEMS)
     repeats = 3 if args.quick else args.repeats
     rows = run(repeats, (1, 1024), systems)
     table = markdown(rows)
     print()
     print(table)
-    os.makedirs(args.out, exist_ok=True)
-    with open(os.path.join(args.out, "derivation_overhead.json"), "w") as f:
-        json.dump({"rows": rows, "jax": jax.__version__, "backend": jax.default_backend(), "cpus": os.cpu_count()}, f, indent=1)
-    with open(os.path.join(args.out, "derivation_overhead.md"), "w") as f:
-        f.write(table + "\n")
+    write_json(os.path.join(out, "derivation_overhead.json"),
+               {"rows": rows, "jax": jax.__version__, "backend": jax.default_backend(), "cpus": os.cpu_count()})
+    write_text(os.path.join(out, "derivation_overhead.md"), table + "\n")
+    print(f"wrote {out}/derivation_overhead.json and .md")
 
 
 if __name__ == "__main__":

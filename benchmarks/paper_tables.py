@@ -1,18 +1,28 @@
 """The paper's Tables I and II, with ours beside them: CE-APG, PAPG, CEM and APG on the three tasks.
 
+    python benchmarks/paper_tables.py --budget laptop --algos ce_apg   # Table I on the rods (the examples' defaults)
+    python benchmarks/paper_tables.py --algos ce_apg --variant braxv1 --set bodies=brax_v1   # on the Brax v1 bodies
+    python benchmarks/paper_tables.py --budget laptop   # every algorithm: Table II's PAPG, CEM and APG too (hours)
     python benchmarks/paper_tables.py --budget paper   # the authors' protocol (about 1e9 env steps per CE-APG run)
-    python benchmarks/paper_tables.py --budget laptop  # this project's cut protocol (the examples' defaults)
-    python benchmarks/paper_tables.py --budget laptop --tasks acrobot --algos ce_apg --seeds 0 1   # a subset
-    python benchmarks/paper_tables.py --budget smoke --seeds 0      # a pipeline check (numbers meaningless)
-    python benchmarks/paper_tables.py --tasks acrobot --algos ce_apg --variant warmup \
-        --set warmup_horizons=300,400 --set warmup_iterations=20 --set warmup_upright=0   # a changed protocol
+    python benchmarks/paper_tables.py --budget smoke --seeds 0   # a pipeline check (numbers meaningless; runs/)
+
+The published acrobot variants (``--tasks acrobot --algos ce_apg`` and):
+
+    --variant ep1 --set episodes=1                                  # one episode per APG step
+    --variant braxv1ep1 --set bodies=brax_v1 --set episodes=1
+    --variant braxv1warmup --set bodies=brax_v1 \
+        --set warmup_horizons=300,400 --set warmup_iterations=20 --set warmup_upright=0   # the horizon curriculum
+    --variant braxv1warmupep1 --set bodies=brax_v1 --set episodes=1 \
+        --set warmup_horizons=300,400 --set warmup_iterations=20 --set warmup_upright=0
 
 For every (algorithm, task, seed) it trains, evaluates the final deterministic policy on 16 fixed random
 starts, and records the mean return, whether every evaluation episode balanced, env steps and wall-clock
 seconds. Runs are checkpointed under ``--out`` and skipped when their result exists, so the benchmark can
-be resumed; a result trained with another config than the selected one stops the script, naming the changed fields. Writes ``--out/<budget>/results.json`` and ``tables.md`` (mean +- std over seeds, fraction of
-seeds that balance, the paper's numbers beside ours), and the same as
-``benchmarks/results/paper_tables_<budget>_{results.json,tables.md}``, from every finished run of the budget.
+be resumed; a result trained with another config than the selected one stops the script, naming the changed
+fields. Writes ``--out/<budget>/results.json`` and ``tables.md`` (mean +- std over seeds, fraction of seeds that
+balance, the paper's numbers beside ours), and the same as
+``benchmarks/results/paper_tables_<budget>_{results.json,tables.md}``, from every finished run of the budget
+(``--budget smoke``: under ``runs/benchmarks/``, not published).
 ``--set FIELD=VALUE`` (repeatable) changes a field of every selected algorithm's config; such runs need a
 ``--variant NAME`` and go to ``--out/<budget>_<NAME>/`` and ``paper_tables_<budget>_<NAME>_*``, apart from the
 budget's own tables. On a fresh clone (no ``--out`` runs yet) the published runs are restored first, so the
@@ -33,10 +43,11 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
 
-from benchmarks._files import write_json, write_text  # noqa: E402
+from benchmarks._cli import outputs  # noqa: E402
 from optim import apg, ce_apg, cem, checkpoint, papg  # noqa: E402
 from optim._loop import comparable_config, run  # noqa: E402
 from optim.apg import evaluate  # noqa: E402
+from optim.checkpoint import write_json, write_text  # noqa: E402
 from optim.devices import cpu_core_count, use_cpu_cores  # noqa: E402
 
 TASKS = ("cartpole", "acrobot", "double_cartpole")
@@ -190,8 +201,9 @@ def main(argv=None):
     p.add_argument("--algos", nargs="+", choices=ALGOS, default=list(ALGOS))
     p.add_argument("--seeds", nargs="+", type=int, default=list(range(8)))
     p.add_argument("--out", default="runs/paper_tables")
-    p.add_argument("--results", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "results"),
-                   help="where paper_tables_<budget>_{results.json,tables.md} are written (besides OUT/<budget>/)")
+    p.add_argument("--results", default=None,
+                   help="where paper_tables_<budget>_{results.json,tables.md} are written (besides OUT/<budget>/; "
+                        "default benchmarks/results, runs/benchmarks for --budget smoke)")
     p.add_argument("--set", action="append", metavar="FIELD=VALUE", dest="overrides",
                    help="change a config field of the selected runs (repeatable; 300,400 is a tuple); needs --variant")
     p.add_argument("--variant", default=None, help="name of a --set protocol: its runs and tables are kept apart")
@@ -199,6 +211,7 @@ def main(argv=None):
     p.add_argument("--cpu-devices", type=int, default=cpu_core_count(),
                    help="JAX CPU devices to shard CE-APG/PAPG candidates over (default: one per core)")
     args = p.parse_args(argv)
+    args.results = args.results or str(outputs(args.budget == "smoke")[0])
     overrides = parse_overrides(args.overrides)
     if bool(overrides) != bool(args.variant):
         raise SystemExit("--set and --variant go together: a changed protocol is kept apart under its name")

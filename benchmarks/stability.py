@@ -1,7 +1,7 @@
 """Numerical stability sweeps: energy drift, random stress states, float32 vs float64, gradients.
 
-    python -m benchmarks.stability            # the full sweep (several minutes on 2 cores)
-    python -m benchmarks.stability --quick    # reduced sweep (~1-2 minutes)
+    python -m benchmarks.stability            # the full sweep (about 12 minutes on 2 cores)
+    python -m benchmarks.stability --quick    # reduced sweep (~1-2 minutes), written under runs/benchmarks/
 
 1. Energy drift of the conservative acrobot and double pendulum over 1e5 steps for each solver.
 2. 10,000 random initial states (speeds up to 50 rad/s, mass ratios up to 1e3 within a chain,
@@ -13,15 +13,14 @@
 4. The gradient norm of a final-state loss with respect to the controls against the horizon
    for the acrobot, float32 and float64 (plot).
 
-Writes ``benchmarks/results/stability.json`` and ``benchmarks/results/stability_gradients.png``.
+Writes ``benchmarks/results/stability.json`` and the plot ``docs/img/stability_gradients.png`` (``--quick``:
+``stability_quick.json`` and ``stability_gradients_quick.png`` under ``runs/benchmarks/``, not published).
 Energy errors are relative to ``E0 - V(q = 0)``, the energy above the chain hanging at rest.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import pathlib
 import time
 
 import jax
@@ -31,11 +30,10 @@ jax.config.update("jax_enable_x64", True)
 import equinox as eqx  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
-from benchmarks._files import write_json  # noqa: E402
 
 import lagrange as lg  # noqa: E402
-
-RESULTS = pathlib.Path(__file__).resolve().parent / "results"
+from benchmarks._cli import outputs  # noqa: E402
+from optim.checkpoint import write_json  # noqa: E402
 
 
 def _rollout(chain, q0, qd0, dt, solver, steps, substeps=1):
@@ -226,6 +224,7 @@ def plot_gradients(rows, path):
     for a in ax:
         a.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=90)
     plt.close(fig)
 
@@ -244,21 +243,10 @@ def _table(rows, keys):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="reduced sweep")
-    ap.add_argument("--stress-only", nargs="+", type=int, metavar="N",
-                    help="only the stress batch for these chain sizes, appended to the existing JSON")
-    ap.add_argument("--states", type=int, default=None, help="random states per size with --stress-only")
-    ap.add_argument("--rerun-max", type=int, default=200, help="failures re-run with 8 substeps, at most")
     args = ap.parse_args(argv)
-    if args.stress_only:
-        path = RESULTS / f"stability{'_quick' if args.quick else ''}.json"
-        out = json.loads(path.read_text()) if path.exists() else {}
-        out.setdefault("stress", [])
-        for n in args.stress_only:
-            out["stress"] = [r for r in out["stress"] if r["n"] != n]
-            out["stress"] += stress(args.states or 1666, (n,), seed=n, rerun_max=args.rerun_max)
-            write_json(path, out)
-        return
-    RESULTS.mkdir(exist_ok=True)
+    results, img = outputs(args.quick)
+    suffix = "_quick" if args.quick else ""
+    path, plot_path = results / f"stability{suffix}.json", img / f"stability_gradients{suffix}.png"
     t0 = time.perf_counter()
     out = {"quick": args.quick, "device": str(jax.devices()[0]), "float": "float64 unless stated"}
 
@@ -275,9 +263,8 @@ def main(argv=None):
     print("gradient norm vs horizon (acrobot)", flush=True)
     out["gradient_growth"] = gradient_growth(horizons)
     print(_table(out["gradient_growth"], ["dtype", "horizon_s", "grad_norm", "rel_diff_vs_float64"]))
-    suffix = "_quick" if args.quick else ""
-    plot_gradients(out["gradient_growth"], RESULTS / f"stability_gradients{suffix}.png")
-    write_json(RESULTS / f"stability{suffix}.json", out)
+    plot_gradients(out["gradient_growth"], plot_path)
+    write_json(path, out)
 
     # the stress batch last: compiling 12- and 20-link chains is the slow part
     sizes = (2, 3, 5, 8) if args.quick else (2, 3, 5, 8, 12, 20)
@@ -286,14 +273,13 @@ def main(argv=None):
     out["stress"] = []
     for n in sizes:
         out["stress"] += stress(total // len(sizes), (n,), seed=n)
-        write_json(RESULTS / f"stability{suffix}.json", out)
+        write_json(path, out)
     print(_table(out["stress"], ["n", "states", "nonfinite", "unreported", "fd_nonfinite_at_start",
                                  "min_energy_error_before_blowup", "finite_energy_error_gt_1e_2",
                                  "rerun_with_8_substeps", "nonfinite_with_8_substeps"]))
     out["total_wall_s"] = time.perf_counter() - t0
-    write_json(RESULTS / f"stability{suffix}.json", out)
-    print(f"wrote {RESULTS}/stability{suffix}.json and stability_gradients{suffix}.png "
-          f"({out['total_wall_s']:.0f} s)")
+    write_json(path, out)
+    print(f"wrote {path} and {plot_path} ({out['total_wall_s']:.0f} s)")
 
 
 if __name__ == "__main__":

@@ -1,8 +1,8 @@
 """Speed: env-steps per second, forward and gradient, against the closed form, Brax, MJX, MuJoCo C, Pinocchio.
 
-    python -m benchmarks.throughput            # full sweep
-    python -m benchmarks.throughput --quick    # reduced sweep
+    python -m benchmarks.throughput                  # the acrobot table and the n-link scaling sweep
     python -m benchmarks.throughput --scaling-only   # only the n-link scaling sweep
+    python -m benchmarks.throughput --quick          # reduced sweeps, written under runs/benchmarks/
 
 The acrobot (``lagrange.systems.acrobot()``), float64 on the CPU, dt = 0.01, rollouts of
 ``STEPS`` control steps from random states under random controls, batch 1, 64, 1024, 4096.
@@ -12,7 +12,7 @@ The acrobot (``lagrange.systems.acrobot()``), float64 on the CPU, dt = 0.01, rol
   reverse mode (``jax.grad``); env-steps/s counts forward steps covered.
 - same integrator, same run: semi-implicit Euler (lagrange ``SemiImplicitEuler``, Brax
   generalized, MuJoCo C ``Euler``, MJX ``Euler``) and RK4 (lagrange ``RK4``, the hand-written closed
-  form ``benchmarks/closed_form.py``, MuJoCo C ``RK4``).
+  form ``tests/oracles/closed_form.py``, MuJoCo C ``RK4``).
 - MuJoCo C runs ``mujoco.rollout`` with 2 threads; Pinocchio's ABA (and its derivatives) is timed
   per call from Python on a single state (it has no batch API), so its numbers are per
   dynamics evaluation, not per env-step of an integrator.
@@ -24,15 +24,15 @@ The acrobot (``lagrange.systems.acrobot()``), float64 on the CPU, dt = 0.01, rol
   wall and CPU seconds (CPU time is the cost of compiling on a busy
   machine); the exponent of a least-squares fit ``t ~ n^p`` over n >= 8 (the recursive path).
 
-Writes ``benchmarks/results/throughput[_quick].json`` and ``throughput_scaling[_quick].png``;
-``--scaling-only`` writes ``throughput_scaling[_quick].json`` and the same PNG.
+Writes the acrobot table to ``benchmarks/results/throughput.json``, the scaling sweep to
+``benchmarks/results/throughput_scaling.json`` and its plot to ``docs/img/throughput_scaling.png``
+(``--scaling-only``: only the last two; ``--quick``: ``*_quick.*`` under ``runs/benchmarks/``, not published).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import pathlib
 import time
 import warnings
 
@@ -42,13 +42,13 @@ jax.config.update("jax_enable_x64", True)
 
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
-from benchmarks._files import write_json  # noqa: E402
 
 import lagrange as lg  # noqa: E402
+from benchmarks._cli import outputs  # noqa: E402
 from benchmarks._timing import block, median_time  # noqa: E402
 from lagrange.mjcf import to_mjcf  # noqa: E402
+from optim.checkpoint import write_json  # noqa: E402
 
-RESULTS = pathlib.Path(__file__).resolve().parent / "results"
 DT = 0.01
 STEPS = 100
 
@@ -81,7 +81,7 @@ def lagrange_engine(chain, solver):
 
 
 def closed_form_engine():
-    from benchmarks import closed_form as cf
+    from tests.oracles import closed_form as cf
 
     params = cf.acrobot.Params()
 
@@ -209,16 +209,21 @@ def main(argv=None):
     ap.add_argument("--max-n", type=int, default=32, help="largest chain in the scaling sweep")
     ap.add_argument("--scaling-only", action="store_true", help="run only the n-link scaling sweep")
     args = ap.parse_args(argv)
-    RESULTS.mkdir(exist_ok=True)
+    results, img = outputs(args.quick)
     suffix = "_quick" if args.quick else ""
-    batches = [1, 64, 1024] if args.quick else [1, 64, 1024, 4096]
     ns = [n for n in ([2, 4, 8] if args.quick else [2, 4, 8, 12, 16, 20, 24, 32]) if n <= args.max_n]
-    if args.scaling_only:
-        return scaling_main(ns, suffix)
+    if not args.scaling_only:
+        acrobot_main([1, 64, 1024] if args.quick else [1, 64, 1024, 4096], args.quick, args.no_mjx,
+                     results / f"throughput{suffix}.json")
+    scaling_main(ns, results / f"throughput_scaling{suffix}.json", img / f"throughput_scaling{suffix}.png")
+
+
+def acrobot_main(batches, quick, no_mjx, path):
+    """The acrobot table: every engine at every batch size, the ratios at batch 1024, the first calls' seconds."""
     import mujoco
 
-    out = dict(quick=args.quick, cpu_count=os.cpu_count(), mujoco=mujoco.__version__, dt=DT, steps=STEPS,
-               system="acrobot", rows=[], compile=[], scaling=[], pinocchio=None)
+    out = dict(quick=quick, cpu_count=os.cpu_count(), mujoco=mujoco.__version__, dt=DT, steps=STEPS,
+               system="acrobot", rows=[], compile=[], pinocchio=None)
     try:
         import pinocchio
 
@@ -234,7 +239,7 @@ def main(argv=None):
         ("RK4", "lagrange"): lambda: lagrange_engine(chain, lg.RK4()),
         ("RK4", "closed_form"): closed_form_engine,
     }
-    if args.no_mjx:
+    if no_mjx:
         engines.pop(("SemiImplicitEuler", "mjx"))
     for (integ, name), make in engines.items():
         fwd, grad = make()
@@ -281,17 +286,12 @@ def main(argv=None):
         "gradient_vs_brax (SIE, B=1024; target >= 10)": lg_sie_g / get("SemiImplicitEuler", "brax", "gradient_steps_per_s"),
         "gradient_vs_closed_form (RK4, B=1024)": get("RK4", "lagrange", "gradient_steps_per_s") / get("RK4", "closed_form", "gradient_steps_per_s"),
     }
-    if not args.no_mjx:
+    if not no_mjx:
         ratios["gradient_vs_mjx (SIE, B=1024; target >= 30)"] = lg_sie_g / get("SemiImplicitEuler", "mjx", "gradient_steps_per_s")
     out["ratios_batch1024"] = ratios
-
-    out["scaling"] = scaling_rows(ns)
-    out["scaling_fit"] = scaling_fit(out["scaling"])
-
     _print(out)
-    _plot_scaling(out["scaling"], RESULTS / f"throughput_scaling{suffix}.png")
-    write_json(RESULTS / f"throughput{suffix}.json", out)
-    print(f"wrote {RESULTS}/throughput{suffix}.json and throughput_scaling{suffix}.png")
+    write_json(path, out)
+    print(f"wrote {path}")
 
 
 SCALING_T = 20
@@ -340,7 +340,8 @@ def scaling_fit(rows, n_min=8):
     return fit
 
 
-def scaling_main(ns, suffix):
+def scaling_main(ns, path, plot_path):
+    """The n-link scaling sweep: its rows, the fitted exponents and the plot."""
     import mujoco
 
     out = dict(cpu_count=os.cpu_count(), mujoco=mujoco.__version__, dt=DT, steps=SCALING_T, batch=1024,
@@ -357,9 +358,9 @@ def scaling_main(ns, suffix):
     out["scaling"] = scaling_rows(ns)
     out["scaling_fit"] = scaling_fit(out["scaling"])
     _print_scaling(out)
-    _plot_scaling(out["scaling"], RESULTS / f"throughput_scaling{suffix}.png")
-    write_json(RESULTS / f"throughput_scaling{suffix}.json", out)
-    print(f"wrote {RESULTS}/throughput_scaling{suffix}.json and throughput_scaling{suffix}.png")
+    _plot_scaling(out["scaling"], plot_path)
+    write_json(path, out)
+    print(f"wrote {path} and {plot_path}")
 
 
 def _print_scaling(out):
@@ -393,7 +394,6 @@ def _print(out):
     print("\n| engine | forward first call [s] | gradient first call [s] |\n|---|---|---|")
     for r in out["compile"]:
         print(f"| {r['integrator']} {r['engine']} | {r['forward_first_call_s']:.2f} | {r['gradient_first_call_s']:.2f} |")
-    _print_scaling(out)
 
 
 def _plot_scaling(rows, path):
@@ -423,6 +423,7 @@ def _plot_scaling(rows, path):
     ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=80)
     plt.close(fig)
 

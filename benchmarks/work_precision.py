@@ -1,7 +1,7 @@
 """Run time against error: lagrange's solvers, Brax generalized, MuJoCo C and MJX on the same chains.
 
     python -m benchmarks.work_precision            # full sweep
-    python -m benchmarks.work_precision --quick    # reduced sweep (a few minutes on 2 cores)
+    python -m benchmarks.work_precision --quick    # reduced sweep (a few minutes on 2 cores), under runs/benchmarks/
 
 Problems (float64, 10 s, controls held over 0.05 s intervals, the same for every engine):
 
@@ -23,15 +23,15 @@ MuJoCo C via ``mujoco.rollout`` with one thread per core (Euler, RK4, implicitfa
 and MJX (Euler, RK4; dt swept). Every other engine runs the chain exported by
 ``lagrange.mjcf.to_mjcf``.
 
-Writes ``benchmarks/results/work_precision[_quick].json``, ``.md`` (fastest configuration per
-error level and engine) and one ``work_precision_<problem>[_quick].png`` per problem.
+Writes ``benchmarks/results/work_precision.json``, ``benchmarks/results/work_precision.md`` (fastest configuration
+per error level and engine) and one plot per problem, ``docs/img/work_precision_<problem>.png`` (``--quick``:
+``work_precision_quick.*`` and ``work_precision_<problem>_quick.png`` under ``runs/benchmarks/``, not published).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import pathlib
 import time
 import warnings
 
@@ -41,13 +41,13 @@ jax.config.update("jax_enable_x64", True)
 
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
-from benchmarks._files import write_json, write_text  # noqa: E402
 
 import lagrange as lg  # noqa: E402
+from benchmarks._cli import outputs  # noqa: E402
 from benchmarks._timing import block, median_time  # noqa: E402
 from lagrange.mjcf import to_mjcf  # noqa: E402
+from optim.checkpoint import write_json, write_text  # noqa: E402
 
-RESULTS = pathlib.Path(__file__).resolve().parent / "results"
 DT = 0.05  # control interval [s]
 HORIZON = 10.0
 T = int(round(HORIZON / DT))
@@ -275,6 +275,7 @@ def plot(rows, problem, ref, path):
     fig.legend(loc="center right", fontsize=7)
     fig.suptitle(f"{problem}: run time against error (float64; dotted: reference's own error)")
     fig.tight_layout(rect=(0, 0, 0.82, 0.97))
+    path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=70)
     plt.close(fig)
 
@@ -285,7 +286,7 @@ def main(argv=None):
     ap.add_argument("--problems", nargs="*", default=None, help="subset of problems")
     ap.add_argument("--no-mjx", action="store_true", help="skip MJX (slow to compile)")
     args = ap.parse_args(argv)
-    RESULTS.mkdir(exist_ok=True)
+    results, img = outputs(args.quick)
     suffix = "_quick" if args.quick else ""
     k_lg, tols, k_brax, k_mj, k_mjx, mj_int, mjx_int, solvers = sweep(args.quick)
     import mujoco
@@ -320,7 +321,7 @@ def main(argv=None):
                 for k in k_mjx:
                     rows.append(measure(name, chain, q0, qd0, us, f"{integ} h={DT / k:.3g}", "mjx",
                                         mjx_runner(chain, k, integ), ref, substeps=k, integrator=integ))
-        plot(rows, name, ref, RESULTS / f"work_precision_{name}{suffix}.png")
+        plot(rows, name, ref, img / f"work_precision_{name}{suffix}.png")
     out["total_wall_s"] = time.perf_counter() - t0
     md = ["# Run time against error" + (" (--quick)" if args.quick else ""), "",
           "Fastest configuration per engine reaching each final-state error; time for one 10 s rollout "
@@ -328,10 +329,11 @@ def main(argv=None):
     for name in out["references"]:
         md += [fastest_table(out["rows"], name), "",
                f"reference self-error {out['references'][name]['self_error']:.1e}", ""]
-    write_text(RESULTS / f"work_precision{suffix}.md", "\n".join(md))
-    write_json(RESULTS / f"work_precision{suffix}.json", out)
+    write_text(results / f"work_precision{suffix}.md", "\n".join(md))
+    write_json(results / f"work_precision{suffix}.json", out)
     print("\n".join(md))
-    print(f"wrote {RESULTS}/work_precision{suffix}.json/.md/.png ({out['total_wall_s']:.0f} s)")
+    print(f"wrote {results}/work_precision{suffix}.json and .md, {img}/work_precision_<problem>{suffix}.png "
+          f"({out['total_wall_s']:.0f} s)")
 
 
 if __name__ == "__main__":

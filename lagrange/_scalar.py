@@ -57,7 +57,7 @@ def negated(a: Scalar) -> Scalar:
 def neg(a: Scalar) -> Scalar:
     """``-a``, a run-time ``a`` emitted as ``a * -1.0`` (the same value: multiplying by -1 is exact). A sign that reaches
     XLA inside a fused loop, as a ``negate`` or as this multiplication, can cost the loop its vectorization on the CPU
-    (``python -m benchmarks.experiments.xla_vectorization``: the cartpole's closed form 1.5-1.9x slower with one), so
+    (``python -m research.xla_vectorization``: the cartpole's closed form 1.5-1.9x slower with one), so
     the relative-angle derivation keeps its signs symbolic (:func:`negated`); this is the fallback."""
     if is_const(a):
         return float(-a)

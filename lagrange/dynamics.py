@@ -46,7 +46,7 @@ def _folded(chain: Chain) -> Chain:
     """``chain`` with its concrete parameters as NumPy arrays, so that their products with each other are computed
     while tracing and reach XLA as literals. A chain closed over by a jitted function has concrete parameters, but
     XLA receives them as run-time operands of the time-stepping loop: it does not fold them, and on the CPU they can
-    cost the fused step its vectorization (``python -m benchmarks.experiments.xla_vectorization``: the cartpole's
+    cost the fused step its vectorization (``python -m research.xla_vectorization``: the cartpole's
     closed form 1.7-1.9x slower with its constants as arrays). Parameters being differentiated or vmapped are
     tracers and stay as they are."""
     return jax.tree_util.tree_map(_as_constant, chain)

@@ -1,6 +1,6 @@
 """Pictures of a task episode: angles, velocities and actuation over time (PNG), and the chain moving (GIF).
 
-Used by the examples (``swingup.png``, ``swingup.gif``) and by benchmarks that draw an episode. Built on
+Used by the examples (``swingup.png``, ``swingup.gif``) and by research scripts that draw an episode. Built on
 ``matplotlib.figure.Figure`` rather than ``pyplot``, so drawing never picks a backend or opens a window, and works
 headless. Not imported by ``import lagrange`` (matplotlib is only loaded when a picture is drawn).
 """

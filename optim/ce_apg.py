@@ -77,7 +77,7 @@ class CEAPGConfig(InnerAPGConfig):
         (``warmup_iterations`` each) that start upright with probability ``warmup_upright``; the
         rest use ``horizon`` and ``upright_starts``. The learning-rate schedule runs across all
         iterations. BPTT through 500 steps of an unstable chain does not learn even to balance it
-        from upright (``benchmarks/balance_horizon.py``); growing the horizon from 100 steps does.
+        from upright (``research/balance_horizon.py``); growing the horizon from 100 steps does.
 
     The field defaults are the paper's numbers (4.8e6 env steps per iteration, about 1e9 in all).
     ``CEAPGConfig.laptop(task)`` is the cheaper protocol the examples and ``benchmarks/paper_tables.py

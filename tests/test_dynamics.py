@@ -1,6 +1,6 @@
 """The equations of motion against independent references.
 
-References: the hand-written closed forms of ``benchmarks/closed_form.py`` (pendulum, cartpole,
+References: the hand-written closed forms of ``tests/oracles/closed_form.py`` (pendulum, cartpole,
 acrobot, double cartpole), the literal Euler-Lagrange derivation of
 ``lagrange.euler_lagrange`` (dense Hessians of L = T - V, ``jnp.linalg.solve``) for random
 chains, the Christoffel symbols of ``M`` (so ``C qd`` is tied to ``M``), and central finite
@@ -25,8 +25,8 @@ from jax.test_util import check_grads
 
 import lagrange as lg
 import lagrange.euler_lagrange as el
-from benchmarks import closed_form as cf
 from lagrange.chain import Chain, Link
+from oracles import closed_form as cf
 
 REL = 1e-12  # see the module docstring
 

@@ -213,7 +213,7 @@ def test_no_negation_reaches_xla(name):
     """Every sign of the derivation is folded while tracing, into a constant factor or by turning an addition into
     a subtraction (``lagrange._scalar.negated``): no ``neg`` is left in the forward dynamics, and no ``negate`` in
     the compiled batched RK4 rollout. A negate in a fused RK4 stage can cost it its vectorization on the CPU
-    (``python -m benchmarks.experiments.xla_vectorization``: the cartpole's closed form 1.5-1.9x slower with one)."""
+    (``python -m research.xla_vectorization``: the cartpole's closed form 1.5-1.9x slower with one)."""
     chain = STRUCTURES[name]
     counts = Traced(chain).counts
     assert counts["neg"] == 0, dict(counts)

@@ -102,7 +102,7 @@ def test_brax_v1_bodies():
     np.testing.assert_allclose(d.com[1:], [0.3, 0.3]) and np.testing.assert_allclose(d.length[1:], [0.6, 0.6])
     with pytest.raises(ValueError, match=r"bodies must be one of \['rods', 'brax_v1'\], got 'brax'"):
         tasks.make_task("acrobot", "brax")
-    # the task records its bodies (a float64 rebuild, benchmarks.swingup_lqr.rerun_float64, reads them back)
+    # the task records its bodies (a float64 rebuild, research.swingup_lqr.rerun_float64, reads them back)
     assert (tasks.make_task("acrobot").bodies, tasks.make_task("acrobot", "brax_v1").bodies) == ("rods", "brax_v1")
     assert tasks.acrobot().bodies is None and tasks.chain_swingup(tasks.acrobot().chain).bodies is None
     with pytest.raises(ValueError, match=r"Task.bodies must be None or one of \['rods', 'brax_v1'\], got 'brax'"):
