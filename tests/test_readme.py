@@ -7,11 +7,11 @@ TEST_COMMAND = 'python3 -m venv .venv && . .venv/bin/activate && pip install -e 
 RUN_COMMAND = "python3 -m venv .venv && . .venv/bin/activate && pip install -e . && python examples/acrobot_swingup.py"
 
 
-def test_ci_runs_exactly_the_readme_test_command():
+def test_ci_runs_exactly_the_readme_test_command_then_builds_the_docs():
     readme = (ROOT / "README.md").read_text()
-    ci = (ROOT / ".ci" / "run").read_text()
+    lines = (ROOT / ".ci" / "run").read_text().strip().splitlines()
     assert TEST_COMMAND in readme
-    assert ci.strip().splitlines()[-1] == TEST_COMMAND
+    assert lines[-2:] == [TEST_COMMAND, 'pip install -e ".[docs]" && mkdocs build --strict']
 
 
 def test_readme_shows_the_main_job():
