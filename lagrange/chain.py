@@ -33,6 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 
 JOINTS = ("revolute", "prismatic")
+"""The joint kinds a :class:`Link` may have."""
 
 
 def _concrete(x):

@@ -110,6 +110,7 @@ def is_adaptive_capable(solver) -> bool:
 
 
 def check_solver(solver) -> None:
+    """Raise a ``TypeError`` naming the allowed solvers unless ``solver`` is an instance of one of them."""
     if isinstance(solver, (SemiImplicitEuler, SymplecticEuler, Euler, diffrax.AbstractERK)):
         return
     if isinstance(solver, type):

@@ -88,12 +88,13 @@ def n_link_pendulum(n: int, *, mass=1.0, length=1.0, damping=0.0, gear=None, gra
     return Chain([Link("revolute", mass, length, damping=damping, gear=gear) for _ in range(n)], gravity=gravity)
 
 
-# The CE-APG authors' bodies, from their Brax v1 configs (see the module docstring): hinge offsets from each
-# capsule's centre give ``com`` and the hinge-to-hinge ``length``; no inertia is given there, so Brax v1's default
-# of 1 kg m^2 applies. The cartpole's pole has no second hinge; its length (0.6 m) only places the drawn tip.
 BRAX_V1 = {
     "acrobot": dict(masses=(2.5, 2.5), lengths=(0.9, 0.9), coms=(0.45, 0.45), inertias=(1.0, 1.0)),
     "cartpole": dict(cart_mass=10.471975, pole_mass=5.0185914, pole_length=0.6, pole_com=0.3, pole_inertia=1.0),
     "double_cartpole": dict(cart_mass=10.471975, pole_masses=(5.0185914, 5.0185914), pole_lengths=(0.6, 0.6),
                             pole_coms=(0.3, 0.3), pole_inertias=(1.0, 1.0)),
 }
+"""The CE-APG authors' bodies, from their Brax v1 configs: the keywords of :func:`acrobot`, :func:`cartpole` and
+:func:`double_cartpole` that build them. Hinge offsets from each capsule's centre give ``com`` and the hinge-to-hinge
+``length``; no inertia is given there, so Brax v1's default of 1 kg m^2 applies. The cartpole's pole has no second
+hinge; its length (0.6 m) only places the drawn tip. ``lagrange.tasks.make_task(name, bodies="brax_v1")`` uses them."""

@@ -253,9 +253,12 @@ def chain_swingup(chain: Chain, *, dt: float = 0.01, horizon: int = 500, substep
 
 
 TASKS = {"acrobot": acrobot, "cartpole": cartpole, "double_cartpole": double_cartpole}
+"""The CE-APG paper's tasks by name: the constructors :func:`make_task` calls."""
 
 
 BODIES = ("rods", "brax_v1")
+"""The body sets of the paper tasks: this library's rods, or the CE-APG authors' Brax v1 bodies
+(:data:`lagrange.systems.BRAX_V1`)."""
 
 
 def make_task(name: str, bodies: str = "rods") -> Task:
