@@ -1,38 +1,33 @@
 """Small symmetric positive-definite solves, unrolled at trace time.
 
-For the few-link chains this library is built for, a LAPACK call inside a ``scan`` costs far
-more than the arithmetic. An LDL^T factorisation written out over scalars fuses into the
-surrounding elementwise kernel instead. Larger systems use a dense Cholesky solve.
+For the few-link chains this module serves (those shorter than
+``lagrange.dynamics.RECURSIVE_MIN``; longer ones reach ``qdd`` by ABA and need no solve), a LAPACK
+call inside a ``scan`` costs far more than the arithmetic. A division, the adjugate or an LDL^T
+factorisation written out over scalars fuses into the surrounding elementwise kernel instead.
 """
 
 from __future__ import annotations
 
 import jax.numpy as jnp
-import jax.scipy.linalg as jsl
 
 from lagrange import _scalar as s
 
-UNROLL_MAX = 10
-"""Largest n solved by the unrolled LDL^T; above it a dense Cholesky solve is used."""
 
-
-def solve_spd(M, b, like):
+def solve_spd(M, b, like, *, pivots: bool = False):
     """Solve ``M x = b`` for symmetric positive-definite ``M``.
 
     ``M`` is a nested list of scalars (only ``M[i][j]`` with ``j <= i`` is read), ``b`` a list of
-    scalars. Returns a list of scalars.
+    scalars. Returns a list of scalars; with ``pivots=True``, also the list of scalars that are all
+    positive exactly when ``M`` is positive definite, for a positive semi-definite ``M``: ``M[0][0]``
+    (n = 1), the determinant (n = 2, 3) or the pivots of LDL^T.
     """
     n = len(b)
     if n == 1:
-        return [s.div(b[0], M[0][0])]
+        x = [s.div(b[0], M[0][0])]
+        return (x, [M[0][0]]) if pivots else x
     if n in (2, 3):
-        return _solve_adjugate(M, b)
-    if n > UNROLL_MAX:
-        A = to_array(M, like, symmetric=True)
-        rhs = jnp.stack([s.as_array(x, like) for x in b], axis=-1)
-        factor = jnp.linalg.cholesky(A)
-        x = jsl.cho_solve((factor, True), rhs[..., None])[..., 0] if A.ndim == 2 else _batched_cho(factor, rhs)
-        return [x[..., i] for i in range(n)]
+        x, det = _solve_adjugate(M, b)
+        return (x, [det]) if pivots else x
     L = [[0.0] * n for _ in range(n)]
     inv_d = [0.0] * n
     d = [0.0] * n
@@ -55,18 +50,19 @@ def solve_spd(M, b, like):
     for i in reversed(range(n)):
         for k in range(i + 1, n):
             x[i] = s.sub(x[i], s.mul(L[k][i], x[k]))
-    return x
+    return (x, d) if pivots else x
 
 
 def _solve_adjugate(M, b):
-    """Cramer's rule for symmetric 2x2 and 3x3 systems: one division, as written by hand."""
+    """Cramer's rule for symmetric 2x2 and 3x3 systems: one division, as written by hand. Returns ``(x, det M)``."""
     if len(b) == 2:
         a, c, d = M[0][0], M[1][0], M[1][1]
-        inv_det = s.div(1.0, s.sub(s.mul(a, d), s.mul(c, c)))
+        det = s.sub(s.mul(a, d), s.mul(c, c))
+        inv_det = s.div(1.0, det)
         return [
             s.mul(s.sub(s.mul(d, b[0]), s.mul(c, b[1])), inv_det),
             s.mul(s.sub(s.mul(a, b[1]), s.mul(c, b[0])), inv_det),
-        ]
+        ], det
     a, bb, c = M[0][0], M[1][0], M[2][0]
     d, e, f = M[1][1], M[2][1], M[2][2]
     # cofactors of the symmetric matrix [[a, bb, c], [bb, d, e], [c, e, f]]
@@ -76,18 +72,14 @@ def _solve_adjugate(M, b):
     D = s.sub(s.mul(a, f), s.mul(c, c))
     E = s.sub(s.mul(bb, c), s.mul(a, e))
     F = s.sub(s.mul(a, d), s.mul(bb, bb))
-    inv_det = s.div(1.0, s.total([s.mul(a, A), s.mul(bb, B), s.mul(c, C)]))
+    det = s.total([s.mul(a, A), s.mul(bb, B), s.mul(c, C)])
+    inv_det = s.div(1.0, det)
     r0, r1, r2 = b
     return [
         s.mul(s.total([s.mul(A, r0), s.mul(B, r1), s.mul(C, r2)]), inv_det),
         s.mul(s.total([s.mul(B, r0), s.mul(D, r1), s.mul(E, r2)]), inv_det),
         s.mul(s.total([s.mul(C, r0), s.mul(E, r1), s.mul(F, r2)]), inv_det),
-    ]
-
-
-def _batched_cho(factor, rhs):
-    y = jsl.solve_triangular(factor, rhs[..., None], lower=True)
-    return jsl.solve_triangular(jnp.swapaxes(factor, -1, -2), y, lower=False)[..., 0]
+    ], det
 
 
 def to_array(M, like, symmetric: bool = False):

@@ -20,6 +20,12 @@ Structure is static: the number of links, the joint kinds, the prismatic axes, w
 are actuated and which optional terms exist. A term given as exactly zero (no damping, no
 armature, zero gravity) is structurally absent and costs nothing in the compiled program; give
 it a non-zero value if you want to differentiate with respect to it.
+
+Building a chain checks its parameters and stacks them, and computes nothing: no dynamics and no
+JAX operation (concrete values are stacked in NumPy and transferred with ``jax.device_put``). A
+mass matrix that is singular at every configuration because a joint moves nothing is refused here;
+one that is singular only at some configurations is reported by
+:func:`lagrange.dynamics.forward_dynamics` and :func:`lagrange.integrate.simulate` when it is met.
 """
 
 from __future__ import annotations
@@ -31,6 +37,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Array, ArrayLike, Float
 
 JOINTS = ("revolute", "prismatic")
 """The joint kinds a :class:`Link` may have."""
@@ -74,6 +81,9 @@ def _check_scalar(name: str, value, *, positive: bool = False, nonnegative: bool
 class Link(eqx.Module):
     """One link of a planar chain and the joint that connects it to its parent.
 
+    Every parameter is a real scalar (a Python number, or a 0-d array; traced values are accepted
+    and checked once they are known).
+
     Args:
         joint: ``"revolute"`` or ``"prismatic"``.
         mass: link mass [kg], >= 0.
@@ -83,22 +93,33 @@ class Link(eqx.Module):
         axis: for a prismatic joint, the slide direction's angle relative to the parent's normal
             ``e`` [rad]; static.
         damping: viscous joint damping [N s/m or N m s/rad], >= 0.
-        armature: rotor inertia added to the joint's diagonal of M, >= 0.
+        armature: rotor inertia added to the joint's diagonal of M [kg m^2 or kg], >= 0.
         gear: if given (> 0), the joint is actuated with generalized force ``gear * u``; ``None``
             (the default) leaves it passive. To reverse a motor, negate its control.
     """
 
     joint: str = eqx.field(static=True)
-    mass: object
-    length: object = 0.0
-    com: object = None
-    inertia: object = None
+    mass: Float[ArrayLike, ""]
+    length: Float[ArrayLike, ""] = 0.0
+    com: Float[ArrayLike, ""] | None = None
+    inertia: Float[ArrayLike, ""] | None = None
     axis: float = eqx.field(static=True, default=0.0)
-    damping: object = 0.0
-    armature: object = 0.0
-    gear: object = None
+    damping: Float[ArrayLike, ""] = 0.0
+    armature: Float[ArrayLike, ""] = 0.0
+    gear: Float[ArrayLike, ""] | None = None
 
-    def __init__(self, joint, mass, length=0.0, com=None, inertia=None, axis=0.0, damping=0.0, armature=0.0, gear=None):
+    def __init__(
+        self,
+        joint: str,
+        mass: Float[ArrayLike, ""],
+        length: Float[ArrayLike, ""] = 0.0,
+        com: Float[ArrayLike, ""] | None = None,
+        inertia: Float[ArrayLike, ""] | None = None,
+        axis: float = 0.0,
+        damping: Float[ArrayLike, ""] = 0.0,
+        armature: Float[ArrayLike, ""] = 0.0,
+        gear: Float[ArrayLike, ""] | None = None,
+    ):
         if isinstance(joint, np.str_):
             joint = str(joint)
         if not isinstance(joint, str) or joint not in JOINTS:
@@ -133,32 +154,38 @@ def _is_zero(x) -> bool:
 
 
 class Chain(eqx.Module):
-    """An immutable planar serial chain.
+    """An immutable planar serial chain of ``n`` links, ``m`` of them actuated.
 
-    Physical parameters are array leaves of shape ``(n,)`` (``gear``: ``(m,)``), so
+    Physical parameters are array leaves of shape ``(n,)`` (``gear``: ``(m,)``; ``gravity``: ``()``), so
     ``jax.grad``/``eqx.filter_grad`` with respect to masses, lengths, inertias, damping and
-    gravity works. Structure is static (see the module docstring).
+    gravity works. Structure is static, and construction computes nothing (see the module
+    docstring).
 
     Args:
         links: a non-empty sequence of :class:`Link`.
         gravity: gravitational acceleration [m/s^2] along -z; finite.
+
+    Raises:
+        TypeError, ValueError: naming the bad field, for a parameter of the wrong type, sign or
+            shape, a non-finite one, an unknown joint kind, or a joint that moves no mass, inertia
+            or armature at any configuration (a mass matrix singular everywhere).
     """
 
-    mass: jax.Array
-    length: jax.Array
-    com: jax.Array
-    inertia: jax.Array
-    damping: jax.Array | None
-    armature: jax.Array | None
-    gear: jax.Array | None
-    gravity: jax.Array | None
+    mass: Float[Array, " n"]
+    length: Float[Array, " n"]
+    com: Float[Array, " n"]
+    inertia: Float[Array, " n"]
+    damping: Float[Array, " n"] | None
+    armature: Float[Array, " n"] | None
+    gear: Float[Array, " m"] | None
+    gravity: Float[Array, ""] | None
     joints: tuple[str, ...] = eqx.field(static=True)
     axes: tuple[float, ...] = eqx.field(static=True)
     actuated: tuple[int, ...] = eqx.field(static=True)
     damped: tuple[int, ...] = eqx.field(static=True)
     armatured: tuple[int, ...] = eqx.field(static=True)
 
-    def __init__(self, links: Sequence[Link], gravity=9.81):
+    def __init__(self, links: Sequence[Link], gravity: Float[ArrayLike, ""] = 9.81):
         if isinstance(links, Link):
             raise TypeError("Chain.links must be a sequence of Link, got a single Link; wrap it in a list")
         links = tuple(links)
@@ -175,28 +202,24 @@ class Chain(eqx.Module):
                 raise ValueError(f"Chain.gravity must be a scalar, got shape {g.shape}")
             if not math.isfinite(float(g)):
                 raise ValueError(f"Chain.gravity must be finite, got {float(g)}")
+        _check_every_joint_moves_something(links)
 
         dtype = jax.dtypes.canonicalize_dtype(float)
-
-        def stack(values):
-            return jnp.stack([jnp.asarray(v, dtype=dtype) for v in values])
-
-        self.mass = stack([lk.mass for lk in links])
-        self.length = stack([lk.length for lk in links])
-        self.com = stack([lk.length / 2 if lk.com is None else lk.com for lk in links])
-        self.inertia = stack(
-            [lk.mass * lk.length**2 / 12 if lk.inertia is None else lk.inertia for lk in links]
+        self.mass = _stack([lk.mass for lk in links], dtype)
+        self.length = _stack([lk.length for lk in links], dtype)
+        self.com = _stack([_value(lk.length) / 2 if lk.com is None else lk.com for lk in links], dtype)
+        self.inertia = _stack(
+            [_value(lk.mass) * _value(lk.length) ** 2 / 12 if lk.inertia is None else lk.inertia for lk in links], dtype
         )
         self.joints = tuple(lk.joint for lk in links)
         self.axes = tuple(float(lk.axis) for lk in links)
         self.actuated = tuple(i for i, lk in enumerate(links) if lk.gear is not None)
         self.damped = tuple(i for i, lk in enumerate(links) if not _is_zero(lk.damping))
         self.armatured = tuple(i for i, lk in enumerate(links) if not _is_zero(lk.armature))
-        self.damping = stack([lk.damping for lk in links]) if self.damped else None
-        self.armature = stack([lk.armature for lk in links]) if self.armatured else None
-        self.gear = stack([links[i].gear for i in self.actuated]) if self.actuated else None
-        self.gravity = None if _is_zero(gravity) else jnp.asarray(gravity, dtype=dtype)
-        _check_not_singular(self)
+        self.damping = _stack([lk.damping for lk in links], dtype) if self.damped else None
+        self.armature = _stack([lk.armature for lk in links], dtype) if self.armatured else None
+        self.gear = _stack([links[i].gear for i in self.actuated], dtype) if self.actuated else None
+        self.gravity = None if _is_zero(gravity) else _stack(gravity, dtype)
 
     @property
     def n(self) -> int:
@@ -229,28 +252,75 @@ class Chain(eqx.Module):
         return tuple(out)
 
 
-def _check_not_singular(chain: Chain) -> None:
-    """Raise if the mass matrix is singular (checked at a few configurations, if concrete)."""
-    leaves = [chain.mass, chain.length, chain.com, chain.inertia, chain.armature]
-    if any(isinstance(x, jax.core.Tracer) for x in leaves if x is not None):
-        return
-    from lagrange.dynamics import mass_matrix  # local: dynamics imports chain
+def _value(x):
+    """``x`` as a NumPy array if it is concrete (so that arithmetic on it is not a JAX operation), else as it is."""
+    return x if isinstance(x, jax.core.Tracer) else np.asarray(x)
 
-    rng = np.random.default_rng(0)
-    qs = [np.zeros(chain.n)] + [rng.uniform(-3, 3, chain.n) for _ in range(2)]
-    with jax.ensure_compile_time_eval():
-        for q in qs:
-            M = np.asarray(mass_matrix(chain, jnp.asarray(q)))
-            w = np.linalg.eigvalsh(M)
-            scale = max(float(np.max(np.abs(w))), 1e-300)
-            if not np.all(np.isfinite(w)) or w[0] <= 1e-12 * scale:
-                bad = [
-                    i
-                    for i in range(chain.n)
-                    if float(chain.mass[i]) == 0.0 and float(chain.inertia[i]) == 0.0
-                ]
-                hint = f" (links {bad} have zero mass and zero inertia)" if bad else ""
+
+def _stack(values, dtype):
+    """Per-link scalars (or one scalar) as a JAX array of ``dtype``: stacked in NumPy and transferred when every
+    value is concrete, which runs no JAX computation; with ``jax.numpy`` when one is traced."""
+    if isinstance(values, (list, tuple)):
+        if any(isinstance(v, jax.core.Tracer) for v in values):
+            return jnp.stack([jnp.asarray(v, dtype=dtype) for v in values])
+        return jax.device_put(np.stack([np.asarray(v, dtype=dtype) for v in values]))
+    if isinstance(values, jax.core.Tracer):
+        return jnp.asarray(values, dtype=dtype)
+    return jax.device_put(np.asarray(values, dtype=dtype))
+
+
+def _on_axis(links: tuple[Link, ...], j: int, i: int, com) -> bool:
+    """Whether link ``i``'s centre of mass stays on revolute joint ``j``'s axis at every configuration: it sits on
+    its own joint (``com = 0``) and every joint from ``j`` to it is revolute and joined by links of zero length."""
+    if com is None or float(com) != 0.0:
+        return False
+    for k in range(j, i):
+        if links[k + 1].joint != "revolute" or not _is_zero(links[k].length):
+            return False
+    return True
+
+
+def _check_every_joint_moves_something(links: tuple[Link, ...]) -> None:
+    """Raise if a joint's diagonal entry of the mass matrix is zero at every configuration (then so is its
+    determinant). ``M_jj = sum_{i >= j} (m_i |dc_i/dq_j|^2 + I_i [joint j revolute]) + armature_j``: a prismatic
+    joint moves the mass of every link from it on (``|dc_i/dq_j| = 1``); a revolute one moves their inertia and every
+    mass off its axis. A sum of non-negative terms, so it vanishes identically exactly when each term does. A
+    parameter not known yet (traced) counts as non-zero. Checked on the parameters alone, without computing ``M``."""
+    n = len(links)
+    mass = [_concrete(lk.mass) for lk in links]
+    length = [_concrete(lk.length) for lk in links]
+    com = [length[i] / 2 if lk.com is None and length[i] is not None else _concrete(lk.com) for i, lk in enumerate(links)]
+    inertia = [
+        (mass[i] * length[i] ** 2 / 12 if mass[i] is not None and length[i] is not None else None)
+        if lk.inertia is None
+        else _concrete(lk.inertia)
+        for i, lk in enumerate(links)
+    ]
+
+    def zero(x):
+        return x is not None and float(x) == 0.0
+
+    for j, joint in enumerate(links):
+        if not _is_zero(joint.armature):
+            continue
+        tail = range(j, n)
+        if joint.joint == "prismatic":
+            if all(zero(mass[i]) for i in tail):
                 raise ValueError(
-                    "Chain has a singular mass matrix: every coordinate must move some mass, "
-                    f"inertia or armature{hint}; smallest eigenvalue {w[0]:.3g} at q={q.tolist()}"
+                    f"Chain has a singular mass matrix: prismatic joint {j} moves no mass (links {list(tail)} have zero "
+                    f"mass); give one of links {list(tail)} a mass > 0 or joint {j} an armature > 0"
                 )
+            continue
+        massless = [i for i in tail if zero(mass[i]) and zero(inertia[i])]
+        on_axis = [i for i in tail if zero(inertia[i]) and not zero(mass[i]) and _on_axis(links, j, i, com[i])]
+        if len(massless) + len(on_axis) == len(tail):
+            why = []
+            if massless:
+                why.append(f"links {massless} have zero mass and zero inertia")
+            if on_axis:
+                why.append(f"links {on_axis} have zero inertia and their centre of mass on joint {j}'s axis")
+            raise ValueError(
+                f"Chain has a singular mass matrix: revolute joint {j} moves no mass, inertia or armature "
+                f"({'; '.join(why)}); give one of links {list(tail)} an inertia > 0 (or a mass off the joint's axis), "
+                f"or joint {j} an armature > 0"
+            )

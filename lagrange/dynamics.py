@@ -9,24 +9,31 @@ The kinetic energy of a planar chain is ``T = 1/2 sum_i (m_i |J_i qd|^2 + I_i (s
   mass, pulled back to the joints; the planar rotation terms have none),
 - ``T(q) = dV/dq = sum_i m_i g J_i^T e_z``.
 
-Both ``J_i`` and ``(dJ_i/dt) qd`` are differentiated at trace time from the forward kinematics
-(:mod:`lagrange._unitvec`; the sparse jets of :mod:`lagrange._jet` for longer chains), simplified at trace time, so the compiled
-program contains only the terms the chain has. :mod:`lagrange.euler_lagrange` derives the same
-quantities literally (Hessians of the Lagrangian) and serves as the check.
+One derivation per chain size:
 
-Chains of ``RECURSIVE_MIN`` or more links use the recursive algorithms of
-:mod:`lagrange.recursive` instead (ABA, RNEA, CRBA as scans over the links), whose work grows
-like n rather than n^3.
+- chains of fewer than ``RECURSIVE_MIN`` links: ``J_i`` and ``(dJ_i/dt) qd`` are differentiated at
+  trace time from the forward kinematics written as sums of unit vectors (:mod:`lagrange._unitvec`),
+  simplified at trace time, so the compiled program contains only the terms the chain has, and
+  ``M qdd = rhs`` is solved unrolled over scalars (:mod:`lagrange._linalg`);
+- chains of ``RECURSIVE_MIN`` or more links: the recursive algorithms of :mod:`lagrange.recursive`
+  (ABA, RNEA, CRBA as scans over the links), whose work grows like n rather than n^3.
 
-All functions are pure, accept leading batch dimensions on ``q``/``qd``/``u`` and are safe
-under ``jit``, ``vmap`` and ``grad``.
+The tests check both against the literal derivation (Hessians of the Lagrangian,
+``tests/oracles/euler_lagrange.py``) and hand-written closed forms.
+
+Shapes: ``n`` links, ``m`` actuated joints. Every function is pure, takes ``q``/``qd``/``u``/``qdd``
+with any leading batch dimensions ``*batch`` (broadcast against each other), and is safe under
+``jit``, ``vmap`` and ``grad``. Units: SI, with a joint's coordinate in rad (revolute) or m
+(prismatic) and its generalized force in N m or N.
 """
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Array, ArrayLike, Float
 
 from lagrange import _scalar as s
 from lagrange import _unitvec
@@ -59,23 +66,6 @@ def _check(chain: Chain, name: str, x, size: int):
         raise ValueError(f"{name} must have shape (..., {size}) for this chain{what}, got {shape}")
 
 
-def _mass_entries(chain: Chain, f) -> list[list]:
-    """Lower triangle of the translational part of M, ``sum_i m_i J_i^T J_i``, from jets."""
-    n = chain.n
-    M = [[0.0] * n for _ in range(n)]
-    for i, (cx, cz) in enumerate(f.com):
-        m = chain.mass[i]
-        cols = sorted(set(cx.g) | set(cz.g))
-        for a, j in enumerate(cols):
-            for k in cols[: a + 1]:
-                jj, kk = max(j, k), min(j, k)
-                dot = s.add(
-                    s.mul(cx.g.get(j, 0.0), cx.g.get(k, 0.0)), s.mul(cz.g.get(j, 0.0), cz.g.get(k, 0.0))
-                )
-                M[jj][kk] = s.add(M[jj][kk], s.mul(m, dot))
-    return M
-
-
 def _add_rotational(chain: Chain, M: list[list]) -> list[list]:
     """Add ``sum_i I_i s_i^T s_i + diag(armature)`` (s_i: the revolute joints up to link i) to M."""
     revolute: list[int] = []
@@ -90,40 +80,13 @@ def _add_rotational(chain: Chain, M: list[list]) -> list[list]:
     return M
 
 
-def _generalized(chain: Chain, f, *, velocity: bool, gravity: bool) -> list:
-    """sum_i J_i^T F_i for the force F_i = m_i (a_i + g e_z) on each centre of mass."""
-    n = chain.n
-    out = [0.0] * n
-    g = chain.gravity if (gravity and chain.gravity is not None) else 0.0
-    for i, (cx, cz) in enumerate(f.com):
-        m = chain.mass[i]
-        fx = s.mul(m, cx.a) if velocity else 0.0
-        fz = s.mul(m, s.add(cz.a if velocity else 0.0, g))
-        for j in set(cx.g) | set(cz.g):
-            out[j] = s.add(out[j], s.add(s.mul(cx.g.get(j, 0.0), fx), s.mul(cz.g.get(j, 0.0), fz)))
-    return out
-
-
-UNITVEC_MAX = 4
-"""Chains of up to this many links use the relative-angle formulation of :mod:`lagrange._unitvec`
-(fewest operations for short chains); longer ones use the jets of :mod:`lagrange._jet`
-(O(n) transcendentals). With the default ``RECURSIVE_MIN`` the jets serve only chains of
-``RECURSIVE_MIN`` or more links when that switch is raised (the recursive path's tests compare
-against them). Measured on n-link pendulums, compiled arithmetic ops relative-angle /
-jets: n=2 38/68, n=3 131/160, n=4 458/494, n=5 1110/950, n=6 2390/1648."""
-
-
 def _terms(chain: Chain, q, qd, *, mass: bool, velocity: bool, gravity: bool):
-    """(lower triangle of M or None, generalized velocity-product + gravity forces or None)."""
-    if chain.n <= UNITVEC_MAX:
-        absolute = _unitvec.plan(chain, mass=mass, velocity=velocity, gravity=gravity)
-        geom = _unitvec.Geometry(chain, q, qd if velocity else None, absolute)
-        M = _add_rotational(chain, _unitvec.mass_entries(chain, geom)) if mass else None
-        f = _unitvec.generalized_forces(chain, geom, velocity=velocity, gravity=gravity) if (velocity or gravity) else None
-    else:
-        fr = frames(chain, q, qd if velocity else None)
-        M = _add_rotational(chain, _mass_entries(chain, fr)) if mass else None
-        f = _generalized(chain, fr, velocity=velocity, gravity=gravity) if (velocity or gravity) else None
+    """(lower triangle of M or None, generalized velocity-product + gravity forces or None), by the relative-angle
+    formulation of :mod:`lagrange._unitvec` (chains shorter than ``RECURSIVE_MIN``)."""
+    absolute = _unitvec.plan(chain, mass=mass, velocity=velocity, gravity=gravity)
+    geom = _unitvec.Geometry(chain, q, qd if velocity else None, absolute)
+    M = _add_rotational(chain, _unitvec.mass_entries(chain, geom)) if mass else None
+    f = _unitvec.generalized_forces(chain, geom, velocity=velocity, gravity=gravity) if (velocity or gravity) else None
     if f is not None and velocity and chain.damping is not None:
         for j in chain.damped:
             f[j] = s.add(f[j], s.mul(chain.damping[j], qd[..., j]))
@@ -134,7 +97,11 @@ RECURSIVE_MIN = 5
 """Chains of at least this many links use the recursive algorithms of :mod:`lagrange.recursive`
 (ABA for ``forward_dynamics``, CRBA for ``mass_matrix``, RNEA for the forces,
 ``inverse_dynamics`` and ``energy``): O(n) work (O(n^2) for M) and a compiled program whose size
-does not depend on n. Shorter chains keep the unrolled derivations above.
+does not depend on n. Shorter chains keep the unrolled relative-angle derivation above, which needs
+the sine and cosine of every pair of link angles (O(n^2) transcendentals) and whose program grows
+like n^3. Measured on n-link pendulums, compiled arithmetic ops of the relative-angle derivation (in
+parentheses: an alternative unrolled derivation by sparse second-order jets of the forward kinematics,
+O(n) transcendentals): n=2 38 (68), n=3 131 (160), n=4 458 (494), n=5 1110 (950), n=6 2390 (1648).
 
 Measured on n-link pendulums (every joint actuated), semi-implicit Euler rollouts of 20 steps,
 float64, one CPU core of a busy 2-core machine, microseconds per env-step, unrolled / recursive:
@@ -145,10 +112,11 @@ float64, one CPU core of a busy 2-core machine, microseconds per env-step, unrol
   gradient 814 / 1.6-2.7.
 - n = 6, batch 1: forward 4.4 / ~5, gradient 4500 / 17; batch 1024: gradient -- / 3.2.
 
-The unrolled path's reverse mode breaks down from n = 5 (the jets of :mod:`lagrange._jet`; its
-gradient also takes minutes to compile from n = 7), while at n <= 4 (the relative-angle
-formulation) it is the faster choice at batch 1, where each of the recursive path's scans pays a
-per-link loop overhead of ~0.1-0.5 us. Hence 5."""
+The unrolled path measured at n = 5 and 6 is the sparse jets, the cheaper unrolled derivation there.
+Unrolled reverse mode breaks down from n = 5 (the jets' gradient also took minutes to compile from
+n = 7), while at n <= 4 (the relative-angle formulation) the unrolled path is the faster choice at
+batch 1, where each of the recursive path's scans pays a per-link loop overhead of ~0.1-0.5 us.
+Hence 5."""
 
 
 def _recursive(chain: Chain) -> bool:
@@ -159,8 +127,24 @@ def _stack(xs, like):
     return jnp.stack([s.as_array(x, like) for x in xs], axis=-1)
 
 
-def mass_matrix(chain: Chain, q) -> jnp.ndarray:
-    """Mass matrix ``M(q)``, shape ``(..., n, n)``, symmetric positive definite."""
+SINGULAR = (
+    "lagrange.forward_dynamics: the mass matrix is singular (a non-positive pivot in its factorisation) at this "
+    "configuration: some motion of the joints moves no mass, inertia or armature here, e.g. a massless link "
+    "carrying a point mass as the joints align. Give the links an inertia > 0 or the joints an armature > 0"
+)
+"""The error :func:`forward_dynamics` raises at a configuration where ``M`` is singular."""
+
+
+def mass_matrix(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch n n"]:
+    """The mass matrix ``M(q)``, symmetric positive semi-definite (definite for a regular chain).
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`.
+        q: joint coordinates [rad or m], shape ``(*batch, n)``.
+
+    Returns:
+        ``M``, shape ``(*batch, n, n)`` [kg m^2, kg m or kg].
+    """
     _check(chain, "q", q, chain.n)
     chain = _folded(chain)
     if _recursive(chain):
@@ -169,8 +153,19 @@ def mass_matrix(chain: Chain, q) -> jnp.ndarray:
     return to_array(M, q[..., 0], symmetric=True)
 
 
-def bias_forces(chain: Chain, q, qd) -> jnp.ndarray:
-    """``C(q, qd) qd + T(q) + D qd``, shape ``(..., n)``: what the joints must supply at ``qdd = 0``."""
+def bias_forces(
+    chain: Chain, q: Float[ArrayLike, "*batch n"], qd: Float[ArrayLike, "*batch n"]
+) -> Float[Array, "*batch n"]:
+    """``C(q, qd) qd + T(q) + D qd``: the generalized forces the joints must supply at ``qdd = 0``.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`.
+        q: joint coordinates [rad or m], shape ``(*batch, n)``.
+        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
+
+    Returns:
+        Shape ``(*batch, n)`` [N m or N].
+    """
     _check(chain, "q", q, chain.n)
     _check(chain, "qd", qd, chain.n)
     chain = _folded(chain)
@@ -180,8 +175,16 @@ def bias_forces(chain: Chain, q, qd) -> jnp.ndarray:
     return _stack(f, q[..., 0])
 
 
-def gravity_forces(chain: Chain, q) -> jnp.ndarray:
-    """``T(q) = dV/dq``, shape ``(..., n)``."""
+def gravity_forces(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch n"]:
+    """``T(q) = dV/dq``, the generalized gravity forces.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`.
+        q: joint coordinates [rad or m], shape ``(*batch, n)``.
+
+    Returns:
+        Shape ``(*batch, n)`` [N m or N].
+    """
     _check(chain, "q", q, chain.n)
     chain = _folded(chain)
     if _recursive(chain):
@@ -190,8 +193,8 @@ def gravity_forces(chain: Chain, q) -> jnp.ndarray:
     return _stack(f, q[..., 0])
 
 
-def actuation_matrix(chain: Chain) -> jnp.ndarray:
-    """``B``, shape ``(n, m)``: ``B[actuated[k], k] = gear[k]``."""
+def actuation_matrix(chain: Chain) -> Float[Array, "n m"]:
+    """The actuation matrix ``B``, shape ``(n, m)``: ``B[actuated[k], k] = gear[k]``, zero elsewhere."""
     B = jnp.zeros((chain.n, chain.m), dtype=chain.mass.dtype)
     for k, j in enumerate(chain.actuated):
         B = B.at[j, k].set(chain.gear[k])
@@ -207,23 +210,45 @@ def _actuation(chain: Chain, u) -> list:
     return out
 
 
-def forward_dynamics(chain: Chain, q, qd, u=None) -> jnp.ndarray:
-    """Joint accelerations ``qdd = M^-1 (B u - C qd - T - D qd)``, shape ``(..., n)``.
+def forward_dynamics(
+    chain: Chain,
+    q: Float[ArrayLike, "*batch n"],
+    qd: Float[ArrayLike, "*batch n"],
+    u: Float[ArrayLike, "*batch m"] | None = None,
+) -> Float[Array, "*batch n"]:
+    """Joint accelerations ``qdd = M^-1 (B u - C qd - T - D qd)``.
 
-    ``u`` has shape ``(..., m)``; it may be ``None`` (no control) or omitted for an unactuated chain.
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`.
+        q: joint coordinates [rad or m], shape ``(*batch, n)``.
+        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
+        u: controls, shape ``(*batch, m)`` (generalized force ``gear * u`` on each actuated joint);
+            ``None`` (no control) or omitted for an unactuated chain.
+
+    Returns:
+        ``qdd``, shape ``(*batch, n)`` [rad/s^2 or m/s^2].
+
+    Raises:
+        equinox.EquinoxRuntimeError: (when run) if ``M`` is singular at ``q`` (a pivot of its
+            factorisation is not positive), with :data:`SINGULAR` as the message.
     """
-    return _forward(chain, q, qd, u)
+    qdd, singular = _forward(chain, q, qd, u, pivots=True)
+    return eqx.error_if(qdd, singular, SINGULAR)
 
 
-def _forward(chain: Chain, q, qd, u=None, implicit_damping_dt=None) -> jnp.ndarray:
-    """``forward_dynamics``; with ``implicit_damping_dt = h`` it solves with ``M + h diag(damping)``."""
+def _forward(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, pivots: bool = False):
+    """``forward_dynamics`` without its check; with ``implicit_damping_dt = h`` it solves with ``M + h diag(damping)``.
+
+    With ``pivots=True`` it returns ``(qdd, singular)``, ``singular`` (shape ``*batch``) true where a pivot of the
+    factorisation of ``M`` (ABA's articulated inertias ``D_i``; the LDL^T pivots, or the determinant for n <= 3) is
+    not positive or not finite."""
     _check(chain, "q", q, chain.n)
     _check(chain, "qd", qd, chain.n)
     chain = _folded(chain)
     if _recursive(chain):
         if u is not None:
             _check(chain, "u", u, chain.m)
-        return recursive.forward_dynamics(chain, q, qd, u, implicit_damping_dt=implicit_damping_dt)
+        return recursive.forward_dynamics(chain, q, qd, u, implicit_damping_dt=implicit_damping_dt, pivots=pivots)
     M, bias = _terms(chain, q, qd, mass=True, velocity=True, gravity=True)
     tau = _actuation(chain, u) if u is not None else [0.0] * chain.n
     # an unactuated joint's -bias keeps its sign symbolic (folded into the solve, see _scalar.negated)
@@ -232,12 +257,30 @@ def _forward(chain: Chain, q, qd, u=None, implicit_damping_dt=None) -> jnp.ndarr
     if implicit_damping_dt is not None and chain.damping is not None:
         for j in chain.damped:
             M[j][j] = s.add(M[j][j], s.mul(implicit_damping_dt, chain.damping[j]))
-    qdd = solve_spd(M, rhs, like)
-    return _stack(qdd, like)
+    if not pivots:
+        return _stack(solve_spd(M, rhs, like), like)
+    qdd, p = solve_spd(M, rhs, like, pivots=True)
+    p = jnp.stack(jnp.broadcast_arrays(*(s.as_array(x, like) for x in p)), axis=-1)
+    return _stack(qdd, like), jnp.any(~((p > 0) & jnp.isfinite(p)), axis=-1)
 
 
-def inverse_dynamics(chain: Chain, q, qd, qdd) -> jnp.ndarray:
-    """Generalized forces ``M qdd + C qd + T + D qd`` that produce ``qdd``, shape ``(..., n)``."""
+def inverse_dynamics(
+    chain: Chain,
+    q: Float[ArrayLike, "*batch n"],
+    qd: Float[ArrayLike, "*batch n"],
+    qdd: Float[ArrayLike, "*batch n"],
+) -> Float[Array, "*batch n"]:
+    """The generalized forces ``M qdd + C qd + T + D qd`` that produce the accelerations ``qdd``.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`.
+        q: joint coordinates [rad or m], shape ``(*batch, n)``.
+        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
+        qdd: joint accelerations [rad/s^2 or m/s^2], shape ``(*batch, n)``.
+
+    Returns:
+        Shape ``(*batch, n)`` [N m or N]; equal to ``B u`` when ``qdd = forward_dynamics(chain, q, qd, u)``.
+    """
     _check(chain, "qdd", qdd, chain.n)
     if _recursive(chain):
         _check(chain, "q", q, chain.n)
@@ -246,8 +289,11 @@ def inverse_dynamics(chain: Chain, q, qd, qdd) -> jnp.ndarray:
     return jnp.einsum("...ij,...j->...i", mass_matrix(chain, q), qdd) + bias_forces(chain, q, qd)
 
 
-def energy(chain: Chain, q, qd) -> tuple[jnp.ndarray, jnp.ndarray]:
-    """``(kinetic, potential)`` energy [J]; potential is zero with the chain's origin at z = 0."""
+def energy(
+    chain: Chain, q: Float[ArrayLike, "*batch n"], qd: Float[ArrayLike, "*batch n"]
+) -> tuple[Float[Array, " *batch"], Float[Array, " *batch"]]:
+    """``(kinetic, potential)`` energy [J], each of shape ``(*batch,)``; the potential is zero with the chain's
+    origin at z = 0."""
     _check(chain, "q", q, chain.n)
     _check(chain, "qd", qd, chain.n)
     if _recursive(chain):

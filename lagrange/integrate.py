@@ -17,12 +17,14 @@ diffrax ``adjoint`` (e.g. ``diffrax.RecursiveCheckpointAdjoint()``,
 from __future__ import annotations
 
 import math
+from typing import Callable
 
 import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Array, ArrayLike, Float
 
 from lagrange.chain import Chain
 from lagrange.dynamics import _forward, actuation_matrix, energy, gravity_forces, mass_matrix
@@ -30,13 +32,14 @@ from lagrange.solvers import RK4, SemiImplicitEuler, SymplecticEuler, check_solv
 
 
 class Trajectory(eqx.Module):
-    """A rolled-out trajectory: times ``t`` (T+1,), positions ``q`` and velocities ``qd``
-    (T+1, n), and the controls ``u`` (T, m) that were applied over each interval."""
+    """A rolled-out trajectory over ``T`` intervals: times ``t`` [s], shape ``(T+1,)``; joint coordinates ``q``
+    [rad or m] and velocities ``qd`` [rad/s or m/s], shape ``(T+1, n)``; and the controls ``u``, shape
+    ``(T, m)``, that were applied over each interval (``times = T + 1``, ``intervals = T``)."""
 
-    t: jax.Array
-    q: jax.Array
-    qd: jax.Array
-    u: jax.Array
+    t: Float[Array, " times"]
+    q: Float[Array, "times n"]
+    qd: Float[Array, "times n"]
+    u: Float[Array, "intervals m"]
 
 
 def _check_dt(dt):
@@ -200,15 +203,16 @@ def _check_state(chain, q, qd):
 
 def simulate(
     chain: Chain,
-    q0,
-    qd0,
-    controls,
-    dt: float,
-    solver=RK4(),
+    q0: Float[ArrayLike, " n"],
+    qd0: Float[ArrayLike, " n"],
+    controls: Float[ArrayLike, "T m"] | Callable[[Float[Array, ""], Float[Array, " n"], Float[Array, " n"]],
+                                                 Float[ArrayLike, " m"]] | None,
+    dt: float | Float[ArrayLike, ""],
+    solver: diffrax.AbstractSolver | SemiImplicitEuler | SymplecticEuler = RK4(),
     substeps: int = 1,
     *,
     steps: int | None = None,
-    adjoint=None,
+    adjoint: diffrax.AbstractAdjoint | None = None,
     rtol: float | None = None,
     atol: float | None = None,
     max_steps: int = 4096,
@@ -219,7 +223,7 @@ def simulate(
 
     Args:
         chain: the :class:`~lagrange.chain.Chain`.
-        q0, qd0: initial state, shape ``(n,)``.
+        q0, qd0: initial joint coordinates [rad or m] and velocities [rad/s or m/s], shape ``(n,)``.
         controls: an array ``(T, m)`` held constant over each interval, or a policy
             ``controls(t, q, qd) -> u`` of shape ``(m,)`` evaluated at each interval's start
             (then ``steps=T`` is required). ``None`` for an unactuated chain (with ``steps``).
@@ -229,13 +233,17 @@ def simulate(
         adjoint: ``None`` for direct reverse-mode through the unrolled steps, or a diffrax
             adjoint to run every interval through ``diffrax.diffeqsolve``.
         rtol, atol: give both for adaptive steps (embedded-error solvers only).
-        check: raise (``eqx.error_if``) if the final state is not finite.
+        check: raise (``eqx.error_if``) if the final state is not finite, which also reports a
+            mass matrix met singular on the way.
         checkpoint: with fixed steps and ``adjoint=None``, recompute each interval's
             intermediates in the backward pass (``jax.checkpoint``) instead of storing them:
             memory O(T) states only, and 2-3x faster gradients for cheap dynamics on a CPU.
 
     Returns:
         A :class:`Trajectory` with ``t``, ``q``, ``qd`` of leading length ``T + 1`` and ``u``.
+
+    Raises:
+        equinox.EquinoxRuntimeError: (when run, with ``check=True``) if the final state is not finite.
     """
     if not isinstance(chain, Chain):
         raise TypeError(f"chain must be a lagrange.chain.Chain, got {type(chain).__name__}")
@@ -287,7 +295,10 @@ def simulate(
             last,
             ~jnp.all(jnp.isfinite(last)),
             "lagrange.simulate: the state became non-finite (NaN/Inf); reduce dt, raise substeps "
-            "or check the chain's parameters and the controls",
+            "or check the chain's parameters and the controls. A mass matrix that is singular somewhere on the way "
+            "(some motion of the joints moves no mass, inertia or armature there, e.g. a massless link carrying a "
+            "point mass as the joints align) does this too: give the links an inertia > 0 or the joints an "
+            "armature > 0",
         )
         qT, qdT = last[: chain.n], last[chain.n :]
     q = jnp.concatenate([q0[None], qs[:-1], qT[None]])
@@ -296,11 +307,32 @@ def simulate(
     return Trajectory(t=t, q=q, qd=qd, u=us)
 
 
-def step(chain: Chain, q, qd, u, dt: float, solver=RK4(), substeps: int = 1, *, adjoint=None,
-         rtol=None, atol=None, max_steps: int = 4096):
-    """Advance ``(q, qd)`` by one interval ``dt`` under constant control ``u``; returns ``(q, qd)``.
+def step(
+    chain: Chain,
+    q: Float[ArrayLike, "*batch n"],
+    qd: Float[ArrayLike, "*batch n"],
+    u: Float[ArrayLike, "*batch m"] | None,
+    dt: float | Float[ArrayLike, ""],
+    solver: diffrax.AbstractSolver | SemiImplicitEuler | SymplecticEuler = RK4(),
+    substeps: int = 1,
+    *,
+    adjoint: diffrax.AbstractAdjoint | None = None,
+    rtol: float | None = None,
+    atol: float | None = None,
+    max_steps: int = 4096,
+) -> tuple[Float[Array, "*batch n"], Float[Array, "*batch n"]]:
+    """Advance ``(q, qd)`` by one interval of ``dt`` seconds under the constant control ``u``.
 
-    Accepts leading batch dimensions on ``q``, ``qd`` and ``u`` for fixed-step solvers.
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`.
+        q, qd: joint coordinates [rad or m] and velocities [rad/s or m/s], shape ``(*batch, n)``
+            (leading batch dimensions for fixed-step solvers only).
+        u: controls, shape ``(*batch, m)``; ``None`` for no control.
+        dt, solver, substeps, adjoint, rtol, atol, max_steps: as for :func:`simulate`.
+
+    Returns:
+        The new ``(q, qd)``, each of shape ``(*batch, n)``.
+
     Pure and cheap: it does not check for non-finite values (see :func:`simulate`).
     """
     check_solver(solver)

@@ -1,8 +1,8 @@
 """Forward kinematics of a planar chain, as jets (values with their q-derivatives).
 
 Each frame's origin and each centre of mass is a pair of :class:`~lagrange._jet.Jet` (x, z).
-The Jacobians, velocities and velocity-product accelerations that the dynamics need are read
-off the jets; nothing here builds a dense Jacobian.
+:func:`positions` and :func:`com_positions` read their values; the energy of chains shorter than
+``lagrange.dynamics.RECURSIVE_MIN`` reads their velocities. Nothing here builds a dense Jacobian.
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from typing import NamedTuple
 import math
 
 import jax.numpy as jnp
+from jaxtyping import Array, ArrayLike, Float
 
 from lagrange import _scalar as s
 from lagrange._jet import Jet, sincos
@@ -48,8 +49,9 @@ def _split(x, n: int):
     return [x[..., i] for i in range(n)]
 
 
-def frames(chain: Chain, q, qd=None) -> Frames:
-    """Jets of every joint origin and centre of mass. ``qd=None`` drops all velocity terms."""
+def frames(chain: Chain, q: Float[ArrayLike, "*batch n"], qd: Float[ArrayLike, "*batch n"] | None = None) -> Frames:
+    """Jets of every joint origin and centre of mass, at joint coordinates ``q`` [rad or m] and velocities ``qd``
+    [rad/s or m/s] of shape ``(*batch, n)``; positions in m. ``qd=None`` drops all velocity terms."""
     n = chain.n
     qs = _split(q, n)
     qds = _split(qd, n)
@@ -88,8 +90,9 @@ def frames(chain: Chain, q, qd=None) -> Frames:
     return Frames(origin, com, tip, rates, rev)
 
 
-def positions(chain: Chain, q) -> jnp.ndarray:
-    """Joint origins and the tip, shape ``(n + 1, 2)`` as (x, z) rows, for plotting."""
+def positions(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch n+1 2"]:
+    """Joint origins and the tip [m] as (x, z) rows, shape ``(*batch, n + 1, 2)``, at joint coordinates ``q``
+    [rad or m] of shape ``(*batch, n)``; for plotting."""
     f = frames(chain, q)
     pts = f.origin + [f.tip]
     like = q[..., 0]
@@ -99,8 +102,9 @@ def positions(chain: Chain, q) -> jnp.ndarray:
     )
 
 
-def com_positions(chain: Chain, q) -> jnp.ndarray:
-    """Centres of mass, shape ``(n, 2)`` as (x, z) rows."""
+def com_positions(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch n 2"]:
+    """Centres of mass [m] as (x, z) rows, shape ``(*batch, n, 2)``, at joint coordinates ``q`` [rad or m] of shape
+    ``(*batch, n)``."""
     f = frames(chain, q)
     like = q[..., 0]
     return jnp.stack(

@@ -296,10 +296,12 @@ def _col(x):
 # ------------------------------------------------------------------ ABA
 
 
-def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None):
+def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, pivots: bool = False):
     """``qdd = M^-1 (B u - C qd - T - D qd)`` by the articulated-body algorithm, shape (..., n).
 
-    With ``implicit_damping_dt = h`` it solves with ``M + h diag(damping)`` (``D_i += h b_i``).
+    With ``implicit_damping_dt = h`` it solves with ``M + h diag(damping)`` (``D_i += h b_i``). With
+    ``pivots=True`` it returns ``(qdd, singular)``: ``singular`` (shape ``batch``) is true where a
+    pivot ``D_i`` (the factorisation of ``M`` that ABA performs) is not positive or not finite.
     """
     u = None if (u is None or chain.m == 0) else u
     batch, dtype, q, qd = _prepare(chain, q, qd, u)
@@ -370,7 +372,10 @@ def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None):
 
     a0 = jnp.stack([zero, zero, zero + g])
     _, qdd = _scan(outward, a0, ys)
-    return _out(qdd)
+    if not pivots:
+        return _out(qdd)
+    inv = ys[:, ynames.index("inv")]  # 1 / D_i, (n, *batch)
+    return _out(qdd), jnp.any(~((inv > 0) & jnp.isfinite(inv)), axis=0)
 
 
 def _scan(body, init, xs, reverse=False):

@@ -97,19 +97,19 @@ SOLVERS = (RK4, Euler, SemiImplicitEuler, SymplecticEuler, Tsit5, Dopri5, Dopri8
 """The solvers this library has been checked with (any explicit diffrax ERK also works)."""
 
 
-def order(solver) -> int:
+def order(solver: diffrax.AbstractSolver | SemiImplicitEuler | SymplecticEuler) -> int:
     """Classical order of accuracy of a solver."""
     return int(solver.order(None))
 
 
-def is_adaptive_capable(solver) -> bool:
+def is_adaptive_capable(solver: diffrax.AbstractSolver | SemiImplicitEuler | SymplecticEuler) -> bool:
     """Whether the solver has an embedded error estimate (so rtol/atol can be used)."""
     if not isinstance(solver, diffrax.AbstractERK):
         return False
     return bool(np.any(np.asarray(solver.tableau.b_error) != 0))
 
 
-def check_solver(solver) -> None:
+def check_solver(solver: object) -> None:
     """Raise a ``TypeError`` naming the allowed solvers unless ``solver`` is an instance of one of them."""
     if isinstance(solver, (SemiImplicitEuler, SymplecticEuler, Euler, diffrax.AbstractERK)):
         return

@@ -25,19 +25,43 @@ Angles are relative joint angles; ``q = 0`` hangs straight down, so a pole is up
 
 from __future__ import annotations
 
+from jaxtyping import ArrayLike, Float
+
 from lagrange.chain import Chain, Link
 
+Scalar = Float[ArrayLike, ""]
+"""A real scalar: a Python number or a 0-d array (traced values included, to differentiate a system)."""
 
-def pendulum(*, mass=1.0, length=1.0, com=None, inertia=None, damping=0.0, gear=1.0, gravity=9.81) -> Chain:
-    """A single revolute link hanging from the origin."""
+
+def pendulum(
+    *,
+    mass: Scalar = 1.0,
+    length: Scalar = 1.0,
+    com: Scalar | None = None,
+    inertia: Scalar | None = None,
+    damping: Scalar = 0.0,
+    gear: Scalar | None = 1.0,
+    gravity: Scalar = 9.81,
+) -> Chain:
+    """A single revolute link hanging from the origin; ``q = (theta,)``, ``u`` of shape ``(1,)`` (``(0,)`` with
+    ``gear=None``). Units and defaults of the keywords as for :class:`~lagrange.chain.Link` [kg, m, kg m^2,
+    N m s/rad] and :class:`~lagrange.chain.Chain` (gravity [m/s^2])."""
     return Chain([Link("revolute", mass, length, com, inertia, damping=damping, gear=gear)], gravity=gravity)
 
 
 def cartpole(
-    *, cart_mass=10.47, pole_mass=5.02, pole_length=1.0, pole_com=None, pole_inertia=None, damping=0.0, gear=100.0,
-    gravity=9.81,
+    *,
+    cart_mass: Scalar = 10.47,
+    pole_mass: Scalar = 5.02,
+    pole_length: Scalar = 1.0,
+    pole_com: Scalar | None = None,
+    pole_inertia: Scalar | None = None,
+    damping: Scalar = 0.0,
+    gear: Scalar = 100.0,
+    gravity: Scalar = 9.81,
 ) -> Chain:
-    """A cart on the x axis (prismatic, actuated) carrying one pole (revolute, passive)."""
+    """A cart on the x axis (prismatic, actuated) carrying one pole (revolute, passive); ``q = (x, theta)``
+    [m, rad], ``u`` of shape ``(1,)`` (cart force ``gear * u`` [N]). ``damping`` [N s/m] acts on the cart."""
     return Chain(
         [
             Link("prismatic", cart_mass, 0.0, com=0.0, inertia=0.0, damping=damping, gear=gear),
@@ -49,16 +73,17 @@ def cartpole(
 
 def double_cartpole(
     *,
-    cart_mass=10.47,
-    pole_masses=(5.02, 5.02),
-    pole_lengths=(1.0, 1.0),
-    pole_coms=(None, None),
-    pole_inertias=(None, None),
-    damping=0.0,
-    gear=1000.0,
-    gravity=9.81,
+    cart_mass: Scalar = 10.47,
+    pole_masses: tuple[Scalar, Scalar] = (5.02, 5.02),
+    pole_lengths: tuple[Scalar, Scalar] = (1.0, 1.0),
+    pole_coms: tuple[Scalar | None, Scalar | None] = (None, None),
+    pole_inertias: tuple[Scalar | None, Scalar | None] = (None, None),
+    damping: Scalar = 0.0,
+    gear: Scalar = 1000.0,
+    gravity: Scalar = 9.81,
 ) -> Chain:
-    """A cart on the x axis (actuated) carrying two poles in series (passive)."""
+    """A cart on the x axis (actuated) carrying two poles in series (passive); ``q = (x, theta1, theta2)``
+    [m, rad, rad], ``u`` of shape ``(1,)`` (cart force ``gear * u`` [N]). ``damping`` [N s/m] acts on the cart."""
     return Chain(
         [
             Link("prismatic", cart_mass, 0.0, com=0.0, inertia=0.0, damping=damping, gear=gear),
@@ -69,9 +94,18 @@ def double_cartpole(
     )
 
 
-def acrobot(*, masses=(2.5, 2.5), lengths=(1.0, 1.0), coms=(None, None), inertias=(None, None), damping=0.0,
-            gear=25.0, gravity=9.81) -> Chain:
-    """Two revolute links; the shoulder is passive and the elbow actuated."""
+def acrobot(
+    *,
+    masses: tuple[Scalar, Scalar] = (2.5, 2.5),
+    lengths: tuple[Scalar, Scalar] = (1.0, 1.0),
+    coms: tuple[Scalar | None, Scalar | None] = (None, None),
+    inertias: tuple[Scalar | None, Scalar | None] = (None, None),
+    damping: Scalar = 0.0,
+    gear: Scalar = 25.0,
+    gravity: Scalar = 9.81,
+) -> Chain:
+    """Two revolute links; the shoulder is passive and the elbow actuated; ``q = (theta1, theta2)`` [rad], ``u`` of
+    shape ``(1,)`` (elbow torque ``gear * u`` [N m]). ``damping`` [N m s/rad] acts on both joints."""
     return Chain(
         [
             Link("revolute", masses[0], lengths[0], com=coms[0], inertia=inertias[0], damping=damping),
@@ -81,8 +115,17 @@ def acrobot(*, masses=(2.5, 2.5), lengths=(1.0, 1.0), coms=(None, None), inertia
     )
 
 
-def n_link_pendulum(n: int, *, mass=1.0, length=1.0, damping=0.0, gear=None, gravity=9.81) -> Chain:
-    """``n`` identical revolute links in series (``gear`` actuates every joint)."""
+def n_link_pendulum(
+    n: int,
+    *,
+    mass: Scalar = 1.0,
+    length: Scalar = 1.0,
+    damping: Scalar = 0.0,
+    gear: Scalar | None = None,
+    gravity: Scalar = 9.81,
+) -> Chain:
+    """``n`` identical revolute links in series; ``q = (theta1, ..., thetan)`` [rad]. ``gear`` actuates every joint
+    (``u`` of shape ``(n,)``, torques ``gear * u`` [N m]); ``None`` leaves them passive (``u`` of shape ``(0,)``)."""
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise ValueError(f"n must be an integer >= 1, got {n!r}")
     return Chain([Link("revolute", mass, length, damping=damping, gear=gear) for _ in range(n)], gravity=gravity)

@@ -83,6 +83,51 @@ def test_unknown_joint_kind(joint):
 
 # ------------------------------------------------------------------ chain
 
+_COMPILES: list[str] = []
+jax.monitoring.register_event_duration_secs_listener(
+    lambda event, secs, **kw: _COMPILES.append(event) if event.startswith("/jax/core/compile") else None
+)
+
+
+def _jax_work(build):
+    """The JAX compile events while ``build()`` runs, with JAX's caches cleared first: any JAX operation, traced or
+    run eagerly, is traced and compiled then (an eager op is a small jitted program), so none means none ran."""
+    jax.clear_caches()
+    start = len(_COMPILES)
+    build()
+    return _COMPILES[start:]
+
+
+def test_building_a_chain_computes_nothing():
+    """Building a chain checks and stacks its parameters, and runs no JAX computation: no dynamics (formerly a
+    singularity check computed M at three configurations) and no JAX operation."""
+    arrays = dict(mass=jnp.asarray(2.0), length=np.float32(0.5))  # JAX and NumPy scalars are accepted too
+    rebuilt = acrobot().links()
+    assert _jax_work(lambda: jnp.stack([jnp.asarray(1.0), jnp.asarray(2.0)]))  # positive control: an eager op counts
+    for build in (
+        acrobot,
+        lambda: lg.systems.double_cartpole(damping=0.1),
+        lambda: lg.systems.n_link_pendulum(6, gear=1.0),
+        lambda: Chain([Link("prismatic", 1.0, axis=0.3, armature=0.1, gear=2.0), Link("revolute", **arrays)]),
+        lambda: Chain(rebuilt),
+    ):
+        assert _jax_work(build) == []
+    chain = Chain([Link("revolute", **arrays)])
+    assert isinstance(chain.mass, jax.Array) and chain.mass.dtype == jnp.asarray(1.0).dtype
+    assert float(chain.inertia[0]) == 2.0 * 0.5**2 / 12 and float(chain.com[0]) == 0.25
+
+
+def test_chain_built_from_traced_parameters():
+    """Parameters traced by ``jax.grad`` stack with ``jax.numpy`` (the trace records them), and the gradient flows."""
+
+    def tip_height(mass):
+        chain = Chain([Link("revolute", 1.0, 1.0), Link("revolute", mass, 1.0, gear=1.0)])
+        return lg.forward_dynamics(chain, jnp.array([0.3, 0.2]), jnp.zeros(2), jnp.array([1.0]))[1]
+
+    h = 1e-6
+    fd = (tip_height(2.0 + h) - tip_height(2.0 - h)) / (2 * h)
+    assert jnp.allclose(jax.grad(tip_height)(2.0), fd, rtol=1e-7)
+
 
 def test_no_links():
     with pytest.raises(ValueError, match=r"Chain\.links must contain at least one Link"):
@@ -99,18 +144,31 @@ def test_links_that_are_not_links():
 
 
 def test_singular_mass_matrix():
-    """A massless, inertia-less tip link: its joint moves nothing, M is singular."""
-    with pytest.raises(ValueError, match=r"singular mass matrix.*links \[1\] have zero mass and zero inertia"):
+    """A joint that moves nothing at any configuration (its diagonal of M is identically zero, so M is singular
+    everywhere) is refused from the parameters alone, naming the joint, the links and the fix."""
+    # a massless, inertia-less tip link
+    with pytest.raises(ValueError, match=r"singular mass matrix: revolute joint 1 moves no mass.*"
+                                         r"links \[1\] have zero mass and zero inertia.*armature > 0"):
         Chain([Link("revolute", 1.0, 1.0), Link("revolute", 0.0, 1.0, inertia=0.0)])
-    # a massless prismatic cart carrying nothing is singular as well
-    with pytest.raises(ValueError, match=r"singular mass matrix"):
-        Chain([Link("prismatic", 0.0, inertia=0.0)])
+    # a massless prismatic cart carrying nothing: its inertia would not help, a slide rotates nothing
+    with pytest.raises(ValueError, match=r"singular mass matrix: prismatic joint 0 moves no mass"):
+        Chain([Link("prismatic", 0.0, inertia=1.0)])
+    # a point mass on the joint's own axis, and one on the axis through a link of zero length
+    with pytest.raises(ValueError, match=r"singular mass matrix: revolute joint 0.*"
+                                         r"links \[0\] have zero inertia and their centre of mass on joint 0's axis"):
+        Chain([Link("revolute", 1.0, 1.0, com=0.0, inertia=0.0)])
+    with pytest.raises(ValueError, match=r"singular mass matrix: revolute joint 0.*links \[0, 1\] have zero inertia"):
+        Chain([Link("revolute", 1.0, 0.0, com=0.0, inertia=0.0), Link("revolute", 1.0, 1.0, com=0.0, inertia=0.0)])
 
 
 def test_massless_link_with_inertia_or_armature_is_fine():
     """The check is not over-eager: inertia or armature alone make M regular."""
     Chain([Link("revolute", 1.0, 1.0), Link("revolute", 0.0, 1.0, inertia=0.1)])
     Chain([Link("revolute", 1.0, 1.0), Link("revolute", 0.0, 1.0, inertia=0.0, armature=0.1)])
+    # joint 0 moves a point mass off its axis, through a link of non-zero length or a slide between
+    Chain([Link("revolute", 1.0, 0.5, com=0.0, inertia=0.0), Link("revolute", 1.0, 1.0, com=0.0, inertia=0.1)])
+    Chain([Link("revolute", 0.0, 0.0, com=0.0, inertia=0.0), Link("prismatic", 1.0, 0.0, com=0.0, inertia=0.0),
+           Link("revolute", 1.0, 1.0, com=0.5, inertia=0.0)])
 
 
 @pytest.mark.parametrize("gravity", [NAN, INF, -INF])
@@ -284,6 +342,28 @@ def test_non_finite_state_is_reported():
         jax.block_until_ready(run(huge))
     # the same program with sane controls runs: the check is not a false alarm
     assert np.all(np.isfinite(np.asarray(run(jnp.zeros((20, 1))))))
+
+
+def test_singular_configuration_is_reported():
+    """A mass matrix singular only at some configurations passes the constructor and is reported where it is met:
+    a massless shoulder carrying a point mass (``det M = m2^2 l1^2 l2^2 sin^2 q2``) with the elbow straight. The
+    parameters alone cannot show it, nor can a chain edited after construction (``eqx.tree_at``), here a 5-link
+    pendulum (the recursive path) given a massless tip."""
+    chain = Chain([Link("revolute", 0.0, 1.0, com=1.0, inertia=0.0), Link("revolute", 1.0, 1.0, com=1.0, inertia=0.0)])
+    qd = jnp.array([0.1, 0.2])
+    with pytest.raises(RuntimeError, match=r"mass matrix is singular.*inertia > 0 or the joints an armature > 0"):
+        jax.block_until_ready(lg.forward_dynamics(chain, jnp.array([0.3, 0.0]), qd))
+    with pytest.raises(RuntimeError, match=r"mass matrix is singular"):  # in a batch, under jit
+        jax.block_until_ready(jax.jit(lg.forward_dynamics)(chain, jnp.array([[0.3, 0.5], [0.3, np.pi]]), qd))
+    assert np.all(np.isfinite(np.asarray(lg.forward_dynamics(chain, jnp.array([0.3, 0.5]), qd))))  # not a false alarm
+    five = lg.systems.n_link_pendulum(5)
+    tipless = eqx.tree_at(lambda c: (c.mass, c.inertia), five, (five.mass.at[4].set(0.0), five.inertia.at[4].set(0.0)))
+    with pytest.raises(RuntimeError, match=r"mass matrix is singular"):
+        jax.block_until_ready(lg.forward_dynamics(tipless, jnp.full(5, 0.3), jnp.zeros(5)))
+    assert np.all(np.isfinite(np.asarray(lg.forward_dynamics(five, jnp.full(5, 0.3), jnp.zeros(5)))))
+    # simulate: the singular step makes the state non-finite, and the message names this cause too
+    with pytest.raises(RuntimeError, match=r"non-finite.*singular somewhere on the way"):
+        jax.block_until_ready(lg.simulate(chain, jnp.array([0.3, 0.0]), jnp.zeros(2), None, 0.01, steps=3).q)
 
 
 def test_non_finite_initial_state_is_reported():

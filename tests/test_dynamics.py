@@ -2,7 +2,7 @@
 
 References: the hand-written closed forms of ``tests/oracles/closed_form.py`` (pendulum, cartpole,
 acrobot, double cartpole), the literal Euler-Lagrange derivation of
-``lagrange.euler_lagrange`` (dense Hessians of L = T - V, ``jnp.linalg.solve``) for random
+``tests/oracles/euler_lagrange.py`` (dense Hessians of L = T - V, ``jnp.linalg.solve``) for random
 chains, the Christoffel symbols of ``M`` (so ``C qd`` is tied to ``M``), and central finite
 differences (``jax.test_util.check_grads``).
 
@@ -24,7 +24,7 @@ import pytest
 from jax.test_util import check_grads
 
 import lagrange as lg
-import lagrange.euler_lagrange as el
+from oracles import euler_lagrange as el
 from lagrange.chain import Chain, Link
 from oracles import closed_form as cf
 

@@ -1,13 +1,13 @@
 """The recursive algorithms (:mod:`lagrange.recursive`: ABA, RNEA, CRBA) against the unrolled
-derivations of :mod:`lagrange.dynamics`, the literal Euler-Lagrange oracle, finite differences
-and energy conservation, and the dispatch on ``lagrange.dynamics.RECURSIVE_MIN``.
+derivation of :mod:`lagrange.dynamics` (chains shorter than ``RECURSIVE_MIN``), the literal
+Euler-Lagrange oracle (``tests/oracles/euler_lagrange.py``), finite differences and energy
+conservation, and the dispatch on ``lagrange.dynamics.RECURSIVE_MIN``.
 
 Tolerances as in ``tests/test_dynamics.py``: M, bias and gravity forces to 1e-12 relative to the
 largest entry, accelerations to ``1e-13 cond(M)``. Measured worst cases over these chains:
 M/bias/gravity ~1e-15, accelerations ~1e-14 (n <= 12).
 """
 
-import contextlib
 import functools
 import time
 
@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import lagrange as lg
-import lagrange.euler_lagrange as el
+from oracles import euler_lagrange as el
 from lagrange import dynamics, recursive
 from test_dynamics import assert_close  # REL = 1e-12, as the docstring says
 from test_dynamics import random_chain as _random_chain
@@ -54,32 +54,19 @@ def evaluate(module, chain, q, qd, u):
     return jax.jit(jax.vmap(lambda q, qd, u: _quantities(module, chain, q, qd, u)))(q, qd, u)
 
 
-@contextlib.contextmanager
-def unrolled():
-    """Force the unrolled (non-recursive) path of lagrange.dynamics, whatever the chain's size."""
-    old = dynamics.RECURSIVE_MIN
-    dynamics.RECURSIVE_MIN = 10**9
-    try:
-        yield
-    finally:
-        dynamics.RECURSIVE_MIN = old
-
-
 @pytest.mark.parametrize("n", [2, 3, 5, 8, 12])
 def test_agrees_with_unrolled_and_oracle(n):
     rng = np.random.default_rng(100 + n)
     chain = random_chain(rng, n, cart=n % 2 == 0)  # a cart base on even sizes; other prismatic joints at random
     q, qd, u = states(rng, chain, k=4)
-    with_unrolled = n <= 5  # the unrolled derivation's compile time grows steeply with n
+    with_unrolled = n < dynamics.RECURSIVE_MIN  # the sizes lagrange.dynamics derives unrolled
 
     def everything(q, qd, u):
         out = dict(rec=_quantities(recursive, chain, q, qd, u), el=_quantities(el, chain, q, qd, u))
         out["tau_id"] = recursive.inverse_dynamics(chain, q, qd, out["rec"][3])
+        out["energy_rec"], out["energy_el"] = recursive.energy(chain, q, qd), el.energy(chain, q, qd)
         if with_unrolled:
-            with unrolled():
-                out["unr"] = _quantities(dynamics, chain, q, qd, u)
-                out["energy_unr"] = dynamics.energy(chain, q, qd)
-            out["energy_rec"] = recursive.energy(chain, q, qd)
+            out["unr"] = _quantities(dynamics, chain, q, qd, u)
         return out
 
     out = jax.jit(jax.vmap(everything))(q, qd, u)
@@ -97,6 +84,8 @@ def test_agrees_with_unrolled_and_oracle(n):
     Mh = M if chain.damping is None else M + 0.05 * jnp.diag(chain.damping)
     assert_close(jnp.einsum("kij,kj->ki", Mh, qdd_h), tau - bias, what="implicit damping")
     assert_close(out["tau_id"], tau, rel=1e-13 * cond, what="inverse of forward dynamics")
+    for a, b, name in zip(out["energy_rec"], out["energy_el"], ("kinetic", "potential")):
+        assert_close(a, b, what=f"{name} energy vs oracle")
     if with_unrolled:
         Mu, bu, gu, qddu, qddu_h = out["unr"]
         assert_close(M, Mu, what="M vs unrolled")
@@ -104,8 +93,6 @@ def test_agrees_with_unrolled_and_oracle(n):
         assert_close(grav, gu, what="gravity vs unrolled")
         assert_close(qdd, qddu, rel=1e-13 * cond, what="qdd vs unrolled")
         assert_close(qdd_h, qddu_h, rel=1e-13 * cond, what="implicit-damping qdd vs unrolled")
-        for a, b, name in zip(out["energy_rec"], out["energy_unr"], ("kinetic", "potential")):
-            assert_close(a, b, what=f"{name} energy")
 
 
 @pytest.mark.parametrize("n", [20, 32])
@@ -180,9 +167,8 @@ def test_gradients_match_unrolled_and_finite_differences():
         rec = jax.jit(functools.partial(loss, lambda c, q, qd, u: recursive.forward_dynamics(c, q, qd, u)))
         args = (q, qd, chain.mass)
         g = jax.jit(jax.grad(rec, argnums=(0, 1, 2)))(*args)
-        if n == 4:
-            with unrolled():
-                gu = jax.jit(jax.grad(functools.partial(loss, lg.forward_dynamics), argnums=(0, 1, 2)))(*args)
+        if n == 4:  # lg.forward_dynamics derives a 4-link chain unrolled
+            gu = jax.jit(jax.grad(functools.partial(loss, lg.forward_dynamics), argnums=(0, 1, 2)))(*args)
             for a, b, name in zip(g, gu, ("q", "qd", "mass")):
                 assert_close(a, b, rel=1e-11, what=f"grad wrt {name} vs unrolled")
         eps = 1e-5

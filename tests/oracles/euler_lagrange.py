@@ -1,10 +1,15 @@
-"""The Euler-Lagrange equations derived literally, for checking and for comparison.
+"""The Euler-Lagrange equations derived literally: the oracle of the tests and the benchmarks' naive derivation.
 
 This is the textbook derivation a reader can verify line by line: dense forward kinematics,
 ``L = T - V``, ``M = d2L/dqd2`` and ``C qd + T = d2L/dqd dq qd - dL/dq`` by JAX's dense
 ``hessian``/``jacfwd``, and ``jnp.linalg.solve``. It shares no code with
 :mod:`lagrange.dynamics` except the :class:`~lagrange.chain.Chain` parameters, and is an order of
-magnitude slower; use it as an oracle, not in loops.
+magnitude slower; an oracle, not for loops.
+
+``tests/test_dynamics.py``, ``tests/test_recursive.py`` and ``tests/test_stability.py`` check ``lagrange`` against
+it; ``benchmarks/derivation_overhead.py`` times it as the "naive autodiff" derivation that ``lagrange`` replaces. They
+import it as ``oracles.euler_lagrange`` (pytest puts ``tests/`` on the path) and ``tests.oracles.euler_lagrange``
+(from the repository root) respectively.
 """
 
 from __future__ import annotations
@@ -40,7 +45,10 @@ def com_and_angles(chain: Chain, q):
     return jnp.stack(coms), jnp.stack(phis)
 
 
-def lagrangian(chain: Chain, q, qd):
+def energy(chain: Chain, q, qd):
+    """``(T, V)``: the kinetic energy from the centres of mass' velocities and the links' angular rates (one ``jvp``
+    of the forward kinematics), and the potential ``sum_i m_i g z_i``."""
+
     def kin(q):
         return com_and_angles(chain, q)
 
@@ -50,6 +58,11 @@ def lagrangian(chain: Chain, q, qd):
         T = T + 0.5 * jnp.sum(chain.armature * qd**2)
     g = 0.0 if chain.gravity is None else chain.gravity
     V = jnp.sum(chain.mass * g * c[:, 1])
+    return T, V
+
+
+def lagrangian(chain: Chain, q, qd):
+    T, V = energy(chain, q, qd)
     return T - V
 
 
