@@ -8,7 +8,7 @@
     python -m benchmarks.algorithms --budget laptop --bodies brax_v1 --tasks acrobot   # on the authors' bodies
 
 Every algorithm trains on the same task objects (:func:`lagrange.tasks.make_task`; the Brax trainers see
-them through :class:`lagrange.envs.BraxEnv`, unchanged). The final policy of each run is evaluated
+them through :class:`lagrange.interop.brax.BraxEnv`, unchanged). The final policy of each run is evaluated
 *deterministically* by this script on the same 16 random starts (``PRNGKey(10_000 + seed)``), with the
 task's own 500-step return and :func:`lagrange.tasks.balanced`. Learning curves are deterministic
 evaluation returns against simulated environment steps and against wall-clock seconds since the start of
@@ -219,7 +219,7 @@ class Diverged(Exception):
 
 
 def _run_brax(kind, name, seed, budget, bodies="rods"):
-    from lagrange.envs import BraxEnv
+    from lagrange.interop.brax import BraxEnv, brax_training_compat
 
     task = make_task(name, bodies)
     env = BraxEnv(task)
@@ -255,7 +255,8 @@ def _run_brax(kind, name, seed, budget, bodies="rods"):
         progress = lambda step, m: curve.append((float(step) * per_eval, time.perf_counter() - t0,
                                                  float(m["eval/episode_reward"])))
     try:
-        make_policy, params, _ = fn(**common, **budget, progress_fn=progress)
+        with brax_training_compat():
+            make_policy, params, _ = fn(**common, **budget, progress_fn=progress)
     except AssertionError as e:
         raise Diverged(curve) from e
     pol = _BraxPolicy(make_policy(params, deterministic=True))

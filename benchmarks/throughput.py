@@ -46,7 +46,7 @@ import numpy as np  # noqa: E402
 import lagrange as lg  # noqa: E402
 from benchmarks._cli import outputs  # noqa: E402
 from benchmarks._timing import block, median_time  # noqa: E402
-from lagrange.mjcf import to_mjcf  # noqa: E402
+from lagrange.interop.mjcf import to_mjcf  # noqa: E402
 from optim.checkpoint import write_json  # noqa: E402
 
 DT = 0.01

@@ -21,7 +21,7 @@ Engines: lagrange (Euler, SemiImplicitEuler, SymplecticEuler, RK4, Tsit5, Dopri5
 Tsit5, Dopri5, Dopri8 with rtol = atol swept), Brax generalized (semi-implicit Euler, dt swept),
 MuJoCo C via ``mujoco.rollout`` with one thread per core (Euler, RK4, implicitfast, dt swept),
 and MJX (Euler, RK4; dt swept). Every other engine runs the chain exported by
-``lagrange.mjcf.to_mjcf``.
+``lagrange.interop.mjcf.to_mjcf``.
 
 Writes ``benchmarks/results/work_precision.json``, ``benchmarks/results/work_precision.md`` (fastest configuration
 per error level and engine) and one plot per problem, ``docs/img/work_precision_<problem>.png`` (``--quick``:
@@ -45,7 +45,7 @@ import numpy as np  # noqa: E402
 import lagrange as lg  # noqa: E402
 from benchmarks._cli import outputs  # noqa: E402
 from benchmarks._timing import block, median_time  # noqa: E402
-from lagrange.mjcf import to_mjcf  # noqa: E402
+from lagrange.interop.mjcf import to_mjcf  # noqa: E402
 from optim.checkpoint import write_json, write_text  # noqa: E402
 
 DT = 0.05  # control interval [s]

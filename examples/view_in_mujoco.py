@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 
 import lagrange as lg
-from lagrange.mjcf import to_mjcf
+from lagrange.interop.mjcf import to_mjcf
 
 
 def main():

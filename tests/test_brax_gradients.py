@@ -1,6 +1,6 @@
 """Trajectories and gradients against Brax's generalized pipeline and finite differences of MuJoCo C.
 
-The three engines run the same model: :func:`lagrange.mjcf.to_mjcf` exports the chain, MuJoCo C
+The three engines run the same model: :func:`lagrange.interop.mjcf.to_mjcf` exports the chain, MuJoCo C
 and ``brax.io.mjcf.loads`` load the string (Brax in float64: ``tests/conftest.py`` enables x64
 before this module imports Brax), and ``lg.SemiImplicitEuler()`` takes the same steps as
 MuJoCo's ``integrator="Euler"`` and Brax's semi-implicit Euler (joint damping implicit, exact
@@ -38,7 +38,7 @@ import pytest
 
 import lagrange as lg
 from lagrange.chain import Chain, Link
-from lagrange.mjcf import to_mjcf
+from lagrange.interop.mjcf import to_mjcf
 from test_mujoco import (
     SYSTEMS,
     TRAJECTORY,

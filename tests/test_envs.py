@@ -1,17 +1,26 @@
-"""The Brax and Gymnasium adapters (lagrange/envs): they reproduce the task exactly, end episodes at the
-horizon, and run in the ecosystems' own machinery (Brax's PPO trainer, Gymnasium's env checker)."""
+"""The Brax and Gymnasium adapters (lagrange/interop): they reproduce the task exactly, end episodes at the
+horizon, run in the ecosystems' own machinery (Brax's PPO trainer, Gymnasium's env checker), and importing
+them changes no other module."""
 
 from __future__ import annotations
 
 import dataclasses
 import subprocess
 import sys
+import textwrap
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from lagrange.tasks import make_task
+
+
+def _run_fresh(code: str) -> None:
+    """Run ``code`` in a fresh interpreter (nothing imported yet); fails with its stderr if it fails."""
+    r = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
 
 
 def _task_rollout(task, key, actions):
@@ -26,11 +35,84 @@ def _task_rollout(task, key, actions):
     return jnp.stack(obs), jnp.stack(rew)
 
 
-def test_importing_lagrange_imports_neither_brax_nor_gymnasium():
-    code = ("import sys, lagrange, lagrange.envs, lagrange.tasks; "
-            "assert 'brax' not in sys.modules and 'gymnasium' not in sys.modules, "
-            "[m for m in sys.modules if m.startswith(('brax', 'gymnasium'))]")
-    subprocess.run([sys.executable, "-c", code], check=True)
+def test_importing_lagrange_and_lagrange_interop_imports_no_optional_engine():
+    """Brax, Gymnasium and MuJoCo are loaded by the adapter that needs them, on first use, never before."""
+    _run_fresh("""
+        import sys
+        import lagrange, lagrange.interop, lagrange.interop.mjcf, lagrange.tasks
+        assert {"BraxEnv", "GymEnv", "brax_training_compat", "to_mjcf"} <= set(dir(lagrange.interop))
+        assert lagrange.interop.to_mjcf is lagrange.interop.mjcf.to_mjcf
+        loaded = [m for m in sys.modules if m.split(".")[0] in ("brax", "gymnasium", "mujoco")]
+        assert not loaded, loaded
+    """)
+
+
+def test_importing_the_adapters_changes_no_other_module():
+    """Importing lagrange.interop.brax and lagrange.interop.gymnasium leaves every module that was loaded before
+    as it was (same names bound to the same objects), ``jax`` above all: in particular it does not put back
+    ``jax.device_put_replicated``. The engines' own imports come first, so that what they do to ``jax`` (Brax
+    imports ``jax.flatten_util``, which binds it on ``jax``) is not counted; the only names allowed to appear
+    are the new submodules bound on their parent packages."""
+    _run_fresh("""
+        import sys
+        import jax
+        import brax.envs.base, gymnasium, lagrange.tasks, lagrange.kinematics
+
+        def namespaces():  # every loaded module but this script's own (__main__)
+            return {name: {k: id(v) for k, v in vars(m).items()}
+                    for name, m in list(sys.modules.items()) if m is not None and m is not sys.modules["__main__"]}
+
+        had = {name: hasattr(jax, name) for name in ("device_put_replicated", "device_put_sharded")}
+        jax_names, before = sorted(dir(jax)), namespaces()
+        import lagrange.interop.brax, lagrange.interop.gymnasium
+        after = namespaces()
+        assert sorted(dir(jax)) == jax_names, set(dir(jax)) ^ set(jax_names)
+        assert {name: hasattr(jax, name) for name in had} == had, had
+        changed = {}
+        for name, ns in before.items():
+            new = {k for k in after[name].keys() - ns.keys() if f"{name}.{k}" not in sys.modules}
+            rebound = {k for k in ns if after[name].get(k) != ns[k]}
+            if new or rebound:
+                changed[name] = (sorted(new), sorted(rebound))
+        assert not changed, changed
+    """)
+
+
+def test_brax_training_compat_installs_the_removed_jax_names_for_its_duration_only(monkeypatch):
+    """Brax 0.14.2 calls ``jax.device_put_replicated`` (``brax.training.pmap.bcast_local_devices``, and its
+    trainers directly), which JAX 0.10 removed. Inside the context the call works with JAX's own implementation;
+    on exit, also by an exception and from nested contexts, ``jax``'s namespace is what it was; a name ``jax``
+    already has is left alone."""
+    from brax.training import pmap
+    from jax._src import api
+
+    from lagrange.interop.brax import brax_training_compat
+
+    names = ("device_put_replicated", "device_put_sharded")
+    before = sorted(dir(jax))
+    had = {n: hasattr(jax, n) for n in names}
+    assert not any(had.values())  # JAX 0.10.2, this project's pin
+    x = jnp.arange(3.0)
+    with pytest.raises(AttributeError):
+        pmap.bcast_local_devices(x)
+    with brax_training_compat():
+        assert all(getattr(jax, n) is getattr(api, n) for n in names)
+        with brax_training_compat():  # nested: the inner context installs nothing and removes nothing
+            pass
+        assert all(getattr(jax, n) is getattr(api, n) for n in names)
+        np.testing.assert_array_equal(np.asarray(pmap.bcast_local_devices(x)), np.asarray(x)[None])
+    assert sorted(dir(jax)) == before and {n: hasattr(jax, n) for n in names} == had
+
+    with pytest.raises(RuntimeError, match="inside"):
+        with brax_training_compat():
+            raise RuntimeError("inside")
+    assert sorted(dir(jax)) == before and {n: hasattr(jax, n) for n in names} == had
+
+    mine = object()
+    monkeypatch.setattr(jax, "device_put_sharded", mine, raising=False)
+    with brax_training_compat():
+        assert jax.device_put_sharded is mine and jax.device_put_replicated is api.device_put_replicated
+    assert jax.device_put_sharded is mine and not hasattr(jax, "device_put_replicated")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -40,7 +122,7 @@ def test_importing_lagrange_imports_neither_brax_nor_gymnasium():
 def test_brax_env_reproduces_the_task_and_ends_at_the_horizon():
     from brax.envs.wrappers import training
 
-    from lagrange.envs import BraxEnv
+    from lagrange.interop.brax import BraxEnv
 
     task = dataclasses.replace(make_task("double_cartpole"), horizon=7)
     env = BraxEnv(task)
@@ -86,14 +168,15 @@ def test_brax_ppo_runs_one_iteration_on_a_task():
     returns acts in [-1, 1]."""
     from brax.training.agents.ppo import train as ppo
 
-    from lagrange.envs import BraxEnv
+    from lagrange.interop.brax import BraxEnv, brax_training_compat
 
     task = dataclasses.replace(make_task("cartpole"), horizon=50)
     log = []
-    make_policy, params, _ = ppo.train(
-        environment=BraxEnv(task), num_timesteps=1, episode_length=50, num_envs=4, batch_size=4,
-        num_minibatches=1, unroll_length=5, num_updates_per_batch=1, num_evals=2, num_eval_envs=2, seed=0,
-        progress_fn=lambda step, metrics: log.append((step, {k: float(v) for k, v in metrics.items()})))
+    with brax_training_compat():
+        make_policy, params, _ = ppo.train(
+            environment=BraxEnv(task), num_timesteps=1, episode_length=50, num_envs=4, batch_size=4,
+            num_minibatches=1, unroll_length=5, num_updates_per_batch=1, num_evals=2, num_eval_envs=2, seed=0,
+            progress_fn=lambda step, metrics: log.append((step, {k: float(v) for k, v in metrics.items()})))
     assert [step for step, _ in log] == [0, 20]  # one iteration: 4 envs x 5 unroll steps
     for _, m in log:
         assert np.isfinite(m["eval/episode_reward"])
@@ -112,14 +195,14 @@ def test_brax_ppo_runs_one_iteration_on_a_task():
 def test_gym_env_passes_check_env():
     from gymnasium.utils.env_checker import check_env
 
-    from lagrange.envs import GymEnv
+    from lagrange.interop.gymnasium import GymEnv
 
     for name in ("acrobot", "cartpole", "double_cartpole"):
         check_env(GymEnv(make_task(name), render_mode="rgb_array"), skip_render_check=False)
 
 
 def test_gym_env_reproduces_the_task_truncates_at_the_horizon_and_renders():
-    from lagrange.envs import GymEnv
+    from lagrange.interop.gymnasium import GymEnv
 
     task = dataclasses.replace(make_task("acrobot"), horizon=5)
     env = GymEnv(task, render_mode="rgb_array")

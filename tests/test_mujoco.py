@@ -1,4 +1,4 @@
-"""lagrange against MuJoCo C on the same model, exported by :func:`lagrange.mjcf.to_mjcf`.
+"""lagrange against MuJoCo C on the same model, exported by :func:`lagrange.interop.mjcf.to_mjcf`.
 
 Throughout, the error of ``a`` against a reference ``b`` is
 
@@ -10,7 +10,7 @@ Throughout, the error of ``a`` against a reference ``b`` is
   ``qfrc_passive``) and accelerations (``qacc`` after ``mj_forward``) agree to 1e-10: each is a
   few dozen float64 operations on O(1) numbers, so the two codes differ by ~1e-15 (times the
   conditioning of ``M`` for ``qacc``); measured <= 1.4e-12, the largest where a zero moment of
-  inertia exported as ``tiny = 1e-12`` rotates (see :mod:`lagrange.mjcf`).
+  inertia exported as ``tiny = 1e-12`` rotates (see :mod:`lagrange.interop.mjcf`).
 - 500-step trajectories agree to 1e-9: ``lg.SemiImplicitEuler()`` against MuJoCo's
   ``integrator="Euler"`` and ``lg.RK4()`` against ``integrator="RK4"``. Both pairs compute the
   same recurrence, so they differ only by round-off (1e-16 per step) accumulated over 500 steps
@@ -38,7 +38,7 @@ from mujoco import rollout as mj_rollout_module
 
 import lagrange as lg
 from lagrange.chain import Chain, Link
-from lagrange.mjcf import to_mjcf
+from lagrange.interop.mjcf import to_mjcf
 
 EXACT = 1e-10  # single evaluations: M, bias forces, qacc
 TRAJECTORY = 1e-9  # 500-step trajectories

@@ -1,7 +1,17 @@
 """Export a chain to MJCF, so MuJoCo and Brax can simulate (or show) the very same system.
 
-:func:`to_mjcf` writes one nested ``<body>`` per link. Our planar x-z conventions map onto
-MuJoCo's 3D frames as follows:
+:func:`to_mjcf` returns the model as an XML string; MuJoCo, MJX and Brax load it with their own
+readers::
+
+    import mujoco
+
+    from lagrange import systems
+    from lagrange.interop.mjcf import to_mjcf
+
+    model = mujoco.MjModel.from_xml_string(to_mjcf(systems.acrobot(), timestep=0.01))
+
+This module needs neither MuJoCo nor Brax. :func:`to_mjcf` writes one nested ``<body>`` per link. Our planar
+x-z conventions map onto MuJoCo's 3D frames as follows:
 
 - Every body frame is the link's frame: origin at the joint, local ``-z`` along the link
   direction ``d(phi)`` and local ``+x`` along the normal ``e(phi)``. Body ``i`` sits at

@@ -1,10 +1,26 @@
-"""A task of :mod:`lagrange.tasks` as a Brax environment (``brax.envs.base.Env``).
+"""A task of :mod:`lagrange.tasks` as a Brax environment, and the context Brax's trainers need.
 
-Importing this module imports Brax (a test dependency of this project, not a runtime one).
+:class:`BraxEnv` wraps a task in ``brax.envs.base.Env``; Brax's trainers (``brax.training.agents.ppo``,
+``sac``, ``apg``) then train on it unchanged. Brax 0.14.2's trainers call ``jax.device_put_replicated``,
+which JAX 0.10 removed from its namespace, so run them inside :func:`brax_training_compat`::
+
+    from brax.training.agents.ppo import train as ppo
+
+    from lagrange.interop.brax import BraxEnv, brax_training_compat
+    from lagrange.tasks import make_task
+
+    env = BraxEnv(make_task("cartpole"))
+    with brax_training_compat():
+        make_policy, params, metrics = ppo.train(environment=env, num_timesteps=100_000, episode_length=500)
+
+Importing this module imports Brax (a test dependency of this project, not a runtime one) and changes no
+other module: ``jax`` is touched only inside :func:`brax_training_compat`, and only for its duration.
 """
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
 from typing import NamedTuple
 
 import jax
@@ -13,7 +29,7 @@ from brax.envs.base import Env, State
 
 from lagrange.tasks import TaskState
 
-__all__ = ["BraxEnv", "PipelineState"]
+__all__ = ["BraxEnv", "PipelineState", "brax_training_compat"]
 
 
 class PipelineState(NamedTuple):
@@ -36,6 +52,10 @@ class BraxEnv(Env):
     the (finite-horizon) task and nothing is bootstrapped beyond it.
 
     Observations, rewards and ``done`` are in the dtype of the chain's parameters.
+
+    Usage: ``env = BraxEnv(make_task("acrobot"))``, then ``env.reset(key)`` and ``env.step(state, action)``
+    (jit and vmap them as any Brax environment), or pass ``environment=env`` to a Brax trainer inside
+    :func:`brax_training_compat`.
     """
 
     def __init__(self, task, *, terminate_at_horizon: bool = True):
@@ -83,17 +103,30 @@ class BraxEnv(Env):
         return float(self.task.dt)
 
 
-def _restore_jax_names_brax_needs() -> None:
-    """Brax 0.14.2's trainers call ``jax.device_put_replicated`` / ``jax.device_put_sharded``, which JAX
-    0.10 removed from its public namespace (the implementations remain in ``jax._src.api``). Put them
-    back, only if missing, so that the trainers run unchanged on this project's pinned versions."""
+_REMOVED_FROM_JAX = ("device_put_replicated", "device_put_sharded")
+"""The pmap-era placement functions JAX 0.10 removed from its public namespace (the implementations remain
+in ``jax._src.api``); Brax 0.14.2's trainers and ``brax.training.pmap`` call ``jax.device_put_replicated``."""
+
+
+@contextlib.contextmanager
+def brax_training_compat() -> Iterator[None]:
+    """Context in which Brax 0.14.2's trainers run on JAX 0.10: ``with brax_training_compat(): ppo.train(...)``.
+
+    On entry, ``jax.device_put_replicated`` and ``jax.device_put_sharded`` are set to JAX's own
+    implementations (``jax._src.api``), each only if ``jax`` lacks it; on exit (also on an exception) every
+    name set here is removed again, so ``jax``'s namespace is exactly as it was before. A name ``jax``
+    already has is left alone. Contexts nest. The names are module attributes, so while the context is
+    open they are visible to every thread of the process.
+    """
     from jax._src import api as _api
 
-    for name in ("device_put_replicated", "device_put_sharded"):
-        try:
-            getattr(jax, name)
-        except AttributeError:
-            setattr(jax, name, getattr(_api, name))
-
-
-_restore_jax_names_brax_needs()
+    installed = []
+    try:
+        for name in _REMOVED_FROM_JAX:
+            if not hasattr(jax, name):
+                setattr(jax, name, getattr(_api, name))
+                installed.append(name)
+        yield
+    finally:
+        for name in reversed(installed):
+            vars(jax).pop(name, None)

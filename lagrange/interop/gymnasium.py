@@ -1,7 +1,17 @@
 """A task of :mod:`lagrange.tasks` as a Gymnasium environment (NumPy in and out).
 
+:class:`GymEnv` wraps a task in ``gymnasium.Env``, for code written against Gymnasium's API::
+
+    from lagrange.interop.gymnasium import GymEnv
+    from lagrange.tasks import make_task
+
+    env = GymEnv(make_task("acrobot"), render_mode="rgb_array")
+    obs, info = env.reset(seed=0)
+    obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+    frame = env.render()  # (240, 320, 3) uint8
+
 Importing this module imports Gymnasium and Matplotlib (Gymnasium is a test dependency of this
-project, not a runtime one).
+project, not a runtime one) and changes no other module.
 """
 
 from __future__ import annotations
