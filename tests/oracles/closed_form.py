@@ -1,9 +1,9 @@
 """Hand-written closed-form equations of motion: the independent oracle of the tests and the benchmarks' reference.
 
-``tests/test_dynamics.py`` checks ``lagrange``'s mass matrices, bias forces and rollouts against them;
-``benchmarks/derivation_overhead.py`` and ``benchmarks/throughput.py`` time ``lagrange`` against them (what the
-derivation costs beside equations written by hand). They import it as ``oracles.closed_form`` (pytest puts ``tests/``
-on the path) and ``tests.oracles.closed_form`` (from the repository root) respectively.
+``tests/lagrange/test_dynamics.py`` and ``tests/lagrange/test_systems.py`` check ``lagrange``'s mass matrices, bias
+forces and rollouts against them; ``benchmarks/derivation_overhead.py``, ``benchmarks/throughput.py`` and
+``research/xla_vectorization.py`` time ``lagrange`` against them (what the derivation costs beside equations written
+by hand). All import it as ``tests.oracles.closed_form`` (``tests`` is a package, found from the repository root).
 
 Written the way a careful person writes them by hand: scalar expressions, every sine and cosine
 evaluated once and shared, ``sin(a + b)`` from the angle-sum identity, an explicit 2x2 inverse

@@ -6,10 +6,9 @@ This is the textbook derivation a reader can verify line by line: dense forward 
 :mod:`lagrange.dynamics` except the :class:`~lagrange.chain.Chain` parameters, and is an order of
 magnitude slower; an oracle, not for loops.
 
-``tests/test_dynamics.py``, ``tests/test_recursive.py`` and ``tests/test_stability.py`` check ``lagrange`` against
-it; ``benchmarks/derivation_overhead.py`` times it as the "naive autodiff" derivation that ``lagrange`` replaces. They
-import it as ``oracles.euler_lagrange`` (pytest puts ``tests/`` on the path) and ``tests.oracles.euler_lagrange``
-(from the repository root) respectively.
+``tests/lagrange/test_dynamics.py``, ``test_recursive.py`` and ``test_stability.py`` check ``lagrange`` against it;
+``benchmarks/derivation_overhead.py`` times it as the "naive autodiff" derivation that ``lagrange`` replaces. All
+import it as ``tests.oracles.euler_lagrange`` (``tests`` is a package, found from the repository root).
 """
 
 from __future__ import annotations

@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 
 import lagrange as lg
-from oracles import euler_lagrange as el
 from lagrange.chain import Chain, Link
+from tests.oracles import euler_lagrange as el
 
 # ---------------------------------------------------------------------------------------------
 # helpers

@@ -24,32 +24,10 @@ import pytest
 from jax.test_util import check_grads
 
 import lagrange as lg
-from oracles import euler_lagrange as el
 from lagrange.chain import Chain, Link
-from oracles import closed_form as cf
-
-REL = 1e-12  # see the module docstring
-
-
-def assert_close(actual, expected, rel=REL, what=""):
-    """max |actual - expected| <= rel * max(1, max |expected|)."""
-    actual, expected = np.asarray(actual), np.asarray(expected)
-    assert actual.shape == expected.shape, (what, actual.shape, expected.shape)
-    scale = max(1.0, float(np.max(np.abs(expected))))
-    err = float(np.max(np.abs(actual - expected)))
-    assert err <= rel * scale, f"{what}: max error {err:.3g} > {rel:.1e} x scale {scale:.3g}"
-
-
-def states(rng, n, k=16):
-    """k random states with angles over the whole circle and velocities up to 3 rad/s."""
-    q = jnp.asarray(rng.uniform(-np.pi, np.pi, (k, n)))
-    qd = jnp.asarray(rng.uniform(-3.0, 3.0, (k, n)))
-    return q, qd
-
-
-def per_state(f, chain, *xs):
-    """Evaluate a single-state function at each of a stack of states (no reliance on batch dims)."""
-    return jax.jit(jax.vmap(lambda *x: f(chain, *x)))(*xs)
+from tests.helpers import REL, assert_close, per_state, random_chain, states
+from tests.oracles import closed_form as cf
+from tests.oracles import euler_lagrange as el
 
 
 # ------------------------------------------------------------------ closed forms
@@ -113,48 +91,6 @@ def test_closed_forms(which):
         assert_close(got[3], want[3], rel=1e-13 * max(cond, 10.0), what=f"{name} qdd")
 
 
-def _com_inertia_cases(rng):
-    """The cart and acrobot chains built with every ``com``/``inertia`` keyword: the authors' Brax v1 bodies
-    (``lagrange.systems.BRAX_V1``) and random values, with the closed-form parameters they stand for."""
-    U = rng.uniform
-    b1 = lg.systems.BRAX_V1
-    a, c, d = b1["acrobot"], b1["cartpole"], b1["double_cartpole"]
-    yield "cartpole", lg.systems.cartpole(**c), cf.cartpole, cf.CartpoleParams(
-        c["cart_mass"], c["pole_mass"], c["pole_length"], c["pole_com"], c["pole_inertia"])
-    yield "acrobot", lg.systems.acrobot(**a), cf.acrobot, cf.AcrobotParams(
-        *a["masses"], *a["lengths"], *a["coms"], *a["inertias"])
-    yield "double_cartpole", lg.systems.double_cartpole(**d), cf.double_cartpole, cf.DoubleCartpoleParams(
-        d["cart_mass"], *d["pole_masses"], *d["pole_lengths"], *d["pole_coms"], *d["pole_inertias"])
-    l, lc, i = U(0.3, 2), U(0.05, 1), U(0.01, 2)
-    yield "cartpole", lg.systems.cartpole(pole_length=l, pole_com=lc, pole_inertia=i), cf.cartpole, \
-        cf.CartpoleParams(pole_length=l, pole_com=lc, pole_inertia=i)
-    (l1, l2), (c1, c2), (i1, i2) = U(0.3, 2, 2), U(0.05, 1, 2), U(0.01, 2, 2)
-    yield "acrobot", lg.systems.acrobot(lengths=(l1, l2), coms=(c1, c2), inertias=(i1, i2)), cf.acrobot, \
-        cf.AcrobotParams(l1=l1, l2=l2, lc1=c1, lc2=c2, I1=i1, I2=i2)
-    yield "double_cartpole", lg.systems.double_cartpole(pole_lengths=(l1, l2), pole_coms=(c1, c2),
-                                                        pole_inertias=(i1, i2)), cf.double_cartpole, \
-        cf.DoubleCartpoleParams(l1=l1, l2=l2, lc1=c1, lc2=c2, I1=i1, I2=i2)
-
-
-def test_com_and_inertia_keywords_match_closed_forms():
-    """The centre-of-mass and inertia keywords of the catalogue (and the Brax v1 presets built from them) give the
-    hand-written equations with those parameters, to 1e-12."""
-    rng = np.random.default_rng(2)
-    cases = list(_com_inertia_cases(rng))
-    assert np.allclose(cases[1][1].inertia, 1.0) and np.allclose(cases[1][1].com, 0.45)  # the presets are not the rods
-    for name, chain, ref, p in cases:
-        q, qd = states(rng, chain.n)
-        u = jnp.asarray(rng.uniform(-1, 1, (q.shape[0], 1)))
-        got = per_state(lambda ch, q, qd, u: (lg.mass_matrix(ch, q), lg.bias_forces(ch, q, qd),
-                                              lg.forward_dynamics(ch, q, qd, u)), chain, q, qd, u)
-        want = jax.jit(lambda q, qd, u: (ref.mass_matrix(p, q), ref.bias(p, q, qd),
-                                         ref.forward_dynamics(p, q, qd, u)))(q, qd, u)
-        assert_close(got[0], want[0], what=f"{name} M")
-        assert_close(got[1], want[1], what=f"{name} bias")
-        cond = float(np.max(np.linalg.cond(np.asarray(got[0]))))
-        assert_close(got[2], want[2], rel=1e-13 * max(cond, 10.0), what=f"{name} qdd")
-
-
 def test_closed_forms_are_not_trivially_equal():
     """A wrong parameter (pole length 1.0 vs 1.1) is far outside the tolerance: the check can fail."""
     rng = np.random.default_rng(2)
@@ -165,35 +101,6 @@ def test_closed_forms_are_not_trivially_equal():
 
 
 # ------------------------------------------------------------------ random chains vs Euler-Lagrange
-
-
-def random_chain(rng, n, damped=0.5, *, cart=False, gravity=None):
-    """A random chain of n links: mixed joints, random prismatic axes, com, inertia, and
-    damping/armature/gear present on random subsets of the joints. ``cart``: link 0 is a prismatic
-    cart on the x axis. ``gravity``: fixed, or None for one drawn by ``n`` (also used by
-    ``tests/test_recursive.py``)."""
-    links = []
-    for i in range(n):
-        base_cart = cart and i == 0
-        prismatic = base_cart or rng.random() < 0.35
-        axis = float(rng.uniform(-np.pi, np.pi)) if prismatic and not base_cart and rng.random() < 0.7 else 0.0
-        length = float(rng.uniform(0.2, 1.5))
-        links.append(
-            Link(
-                "prismatic" if prismatic else "revolute",
-                float(rng.uniform(0.3, 3.0)),
-                length,
-                com=float(rng.uniform(0.0, length)) if rng.random() < 0.5 else None,
-                inertia=float(rng.uniform(0.01, 0.5)) if rng.random() < 0.5 else None,
-                axis=axis,
-                damping=float(rng.uniform(0.05, 1.0)) if rng.random() < damped else 0.0,
-                armature=float(rng.uniform(0.01, 0.2)) if rng.random() < 0.5 else 0.0,
-                gear=float(rng.uniform(0.5, 5.0)) if rng.random() < 0.5 else None,
-            )
-        )
-    if gravity is None:
-        gravity = (0.0, float(rng.uniform(1.0, 20.0)), 9.81)[n % 3] if damped < 1 else 9.81
-    return Chain(links, gravity=gravity)
 
 
 SIZES = (1, 2, 3, 4, 7)  # 1-4 links take the relative-angle path, 7 the recursive one (lagrange.recursive)

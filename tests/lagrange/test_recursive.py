@@ -3,7 +3,7 @@ derivation of :mod:`lagrange.dynamics` (chains shorter than ``RECURSIVE_MIN``), 
 Euler-Lagrange oracle (``tests/oracles/euler_lagrange.py``), finite differences and energy
 conservation, and the dispatch on ``lagrange.dynamics.RECURSIVE_MIN``.
 
-Tolerances as in ``tests/test_dynamics.py``: M, bias and gravity forces to 1e-12 relative to the
+Tolerances as in ``tests/lagrange/test_dynamics.py``: M, bias and gravity forces to 1e-12 relative to the
 largest entry, accelerations to ``1e-13 cond(M)``. Measured worst cases over these chains:
 M/bias/gravity ~1e-15, accelerations ~1e-14 (n <= 12).
 """
@@ -18,14 +18,14 @@ import numpy as np
 import pytest
 
 import lagrange as lg
-from oracles import euler_lagrange as el
 from lagrange import dynamics, recursive
-from test_dynamics import assert_close  # REL = 1e-12, as the docstring says
-from test_dynamics import random_chain as _random_chain
+from tests.helpers import assert_close  # REL = 1e-12, as the docstring says
+from tests.helpers import random_chain as _random_chain
+from tests.oracles import euler_lagrange as el
 
 
 def random_chain(rng, n, cart=False):
-    """``test_dynamics.random_chain`` (damping on about half the joints) under a gravity fixed by ``n``."""
+    """``tests.helpers.random_chain`` (damping on about half the joints) under a gravity fixed by ``n``."""
     return _random_chain(rng, n, cart=cart, gravity=(9.81, 0.0, 3.7)[n % 3])
 
 

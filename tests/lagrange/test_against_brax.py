@@ -6,7 +6,7 @@ before this module imports Brax), and ``lg.SemiImplicitEuler()`` takes the same 
 MuJoCo's ``integrator="Euler"`` and Brax's semi-implicit Euler (joint damping implicit, exact
 ``M`` solve because the export sets ``matrix_inv_iterations=0``).
 
-Errors are ``rel(a, b) = max|a - b| / max(1, max|b|)`` (see ``test_mujoco.py``). Tolerances:
+Errors are ``rel(a, b) = max|a - b| / max(1, max|b|)`` (``tests/helpers.py``). Tolerances:
 
 - Trajectories, 500 steps: 1e-9 (the engines compute the same recurrence; round-off only).
 - Automatic derivatives, ours against Brax's ``jax.jacrev``/``jax.grad``: 1e-10. Both
@@ -24,7 +24,7 @@ Brax 0.14 gets a slide joint below a hinge wrong (``test_brax_bug_slide_joint_be
 chains with one are checked against MuJoCo only. Budget: Brax's pipeline compiles slowly, so each
 model is compiled once (trajectory and derivatives from one jitted ``jacrev``), Brax sees 6
 chains with gradients plus 5 with trajectories only; MuJoCo sees every chain in
-``test_mujoco.py``.
+``test_against_mujoco.py``.
 """
 
 from __future__ import annotations
@@ -39,13 +39,13 @@ import pytest
 import lagrange as lg
 from lagrange.chain import Chain, Link
 from lagrange.interop.mjcf import to_mjcf
-from test_mujoco import (
+from tests.helpers import (
     SYSTEMS,
     TRAJECTORY,
     has_slide_below_hinge,
     mujoco_model,
     mujoco_rollout,
-    random_chain,
+    seeded_chain,
     random_problem,
     rel,
 )
@@ -131,7 +131,7 @@ def mujoco_finite_differences(chain: Chain, dt: float, q0, qd0, us, h=FD_STEP):
 
 
 def _brax_safe(seed):
-    chain = random_chain(seed, slide_below_hinge=False)
+    chain = seeded_chain(seed, slide_below_hinge=False)
     assert not has_slide_below_hinge(chain)
     return chain
 
@@ -143,7 +143,7 @@ TRAJECTORY_CASES = [pytest.param(_brax_safe(seed), 0.005, id=f"random{seed}") fo
 
 
 def test_export_loads_in_brax_in_float64():
-    chain = random_chain(3, slide_below_hinge=False)
+    chain = seeded_chain(3, slide_below_hinge=False)
     sys = brax_system(chain, 0.005)
     assert sys.matrix_inv_iterations == 0
     assert sys.opt.timestep.dtype == jnp.float64 and sys.link.inertia.mass.dtype == jnp.float64
@@ -192,7 +192,7 @@ def test_trajectory_matches_brax(chain, dt):
 @pytest.mark.parametrize("seed", [7, 3])
 def test_gradients_match_mujoco_with_slide_joint_below_hinge(seed):
     """Chains Brax gets wrong (a slide joint below a hinge): gradients against MuJoCo C only."""
-    chain, dt = random_chain(seed), 0.005
+    chain, dt = seeded_chain(seed), 0.005
     assert has_slide_below_hinge(chain)
     q0, qd0, us = random_problem(chain, 3, STEPS)
     J, (q, qd) = derivatives(our_trajectory(chain, dt))(q0, qd0, us)

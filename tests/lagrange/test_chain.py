@@ -4,7 +4,6 @@ never returned silently."""
 
 import math
 
-import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -285,17 +284,6 @@ def test_non_numeric_dt():
     z = jnp.zeros(2)
     with pytest.raises(TypeError, match=r"dt must be a positive real number"):
         lg.simulate(acrobot(), z, z, jnp.zeros((3, 1)), "fast")
-
-
-@pytest.mark.parametrize(
-    "solver", ["rk4", lg.RK4, diffrax.Kvaerno5(), None], ids=["str", "class", "implicit", "None"]
-)
-def test_not_a_solver(solver):
-    z = jnp.zeros(2)
-    with pytest.raises(TypeError, match=r"solver must be"):
-        lg.simulate(acrobot(), z, z, jnp.zeros((3, 1)), 0.01, solver)
-    with pytest.raises(TypeError, match=r"solver must be"):
-        lg.step(acrobot(), z, z, jnp.zeros(1), 0.01, solver)
 
 
 @pytest.mark.parametrize("substeps", [0, -1, 1.5, True])

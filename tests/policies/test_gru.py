@@ -1,17 +1,12 @@
-"""GRU / MLP policies (layout, shapes, hidden-state resets) and the observation normaliser
-(against numpy's mean/variance of the concatenated data)."""
+"""The CE-APG authors' recurrent policy (policies/gru.py): its layout (parameter count by hand), shapes, bounded
+and deterministic actions, hidden-state resets and memory."""
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import pytest
 
-from policies import GRUPolicy, MLPPolicy, Normalizer
-
-
-def _count(tree):
-    return sum(x.size for x in jax.tree_util.tree_leaves(eqx.filter(tree, eqx.is_array)))
+from policies import GRUPolicy
+from tests.helpers import param_count
 
 
 def test_gru_layout_and_shapes():
@@ -24,7 +19,7 @@ def test_gru_layout_and_shapes():
     # Dense(H) -> GRU(hidden = obs) -> Dense(H) -> Dense(H) -> Dense(1): the authors' layout
     gru = 3 * obs * H + 3 * obs * obs + 3 * obs + obs  # eqx GRUCell: W_ih, W_hh, bias, bias_n
     expected = (obs * H + H) + gru + (obs * H + H) + (H * H + H) + (H + 1)
-    assert _count(pol) == expected == 705
+    assert param_count(pol) == expected == 705
     big = GRUPolicy(8, 1, 32, key=jax.random.PRNGKey(0))
     assert big.fc2.weight.shape == (32, 32) and big.hidden_size == 8
 
@@ -68,40 +63,3 @@ def test_gru_memory_carries_information():
     a1 = pol(jnp.zeros(2), h1)[0]
     a2 = pol(jnp.zeros(2), h2)[0]
     assert not np.allclose(a1, a2)
-
-
-def test_mlp_shapes():
-    pol = MLPPolicy(8, 1, 32, key=jax.random.PRNGKey(0))
-    a, h = pol(jnp.ones(8), pol.initial_state(), True)
-    assert a.shape == (1,) and h.shape == (0,) and float(jnp.abs(a).max()) <= 1
-    assert _count(pol) == 8 * 32 + 32 + 32 * 32 + 32 + 32 + 1
-    with pytest.raises(ValueError, match="width"):
-        MLPPolicy(8, 1, 0, key=jax.random.PRNGKey(0))
-
-
-def test_normalizer_matches_numpy_and_clips():
-    rng = np.random.default_rng(0)
-    batches = [rng.normal([1.0, -2.0, 0.0], [0.5, 3.0, 1e-3], size=(n, 3)) for n in (7, 50, 13)]
-    norm = Normalizer.create(3)
-    for b in batches:
-        norm = norm.update(jnp.asarray(b))
-    data = np.concatenate(batches)
-    np.testing.assert_allclose(norm.mean, data.mean(0), rtol=1e-12, atol=1e-14)
-    np.testing.assert_allclose(norm.var, data.var(0), rtol=1e-10)
-    assert float(norm.count) == len(data)
-    z = norm(jnp.asarray(data))
-    expected = np.clip((data - data.mean(0)) / np.sqrt(data.var(0) + 1e-6), -5, 5)
-    np.testing.assert_allclose(z, expected, rtol=1e-9, atol=1e-12)
-    far = norm(jnp.array([1e3, -1e3, 0.0]))
-    np.testing.assert_array_equal(far[:2], [5.0, -5.0])
-    # pure: the old object is unchanged by an update
-    n0 = Normalizer.create(3)
-    n0.update(jnp.ones((4, 3)))
-    assert float(n0.count) == 0
-    # identity (up to clipping) before any data
-    np.testing.assert_allclose(n0(jnp.array([0.5, -1.0, 2.0])), [0.5, -1.0, 2.0], rtol=1e-6)
-
-
-def test_normalizer_validates():
-    with pytest.raises(ValueError, match="clip"):
-        Normalizer.create(3, clip=0.0)

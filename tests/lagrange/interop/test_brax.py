@@ -1,13 +1,10 @@
-"""The Brax and Gymnasium adapters (lagrange/interop): they reproduce the task exactly, end episodes at the
-horizon, run in the ecosystems' own machinery (Brax's PPO trainer, Gymnasium's env checker), and importing
-them changes no other module."""
+"""The Brax adapter (lagrange/interop/brax.py): it reproduces the task exactly, ends episodes at the horizon, runs
+in Brax's own machinery (its training wrappers and PPO trainer), and ``brax_training_compat`` restores ``jax``'s
+namespace on exit. (That importing the adapters changes no other module is in tests/lagrange/test_imports.py.)"""
 
 from __future__ import annotations
 
 import dataclasses
-import subprocess
-import sys
-import textwrap
 
 import jax
 import jax.numpy as jnp
@@ -15,12 +12,6 @@ import numpy as np
 import pytest
 
 from lagrange.tasks import make_task
-
-
-def _run_fresh(code: str) -> None:
-    """Run ``code`` in a fresh interpreter (nothing imported yet); fails with its stderr if it fails."""
-    r = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
 
 
 def _task_rollout(task, key, actions):
@@ -33,49 +24,6 @@ def _task_rollout(task, key, actions):
         obs.append(task.observe(s2))
         s = s2
     return jnp.stack(obs), jnp.stack(rew)
-
-
-def test_importing_lagrange_and_lagrange_interop_imports_no_optional_engine():
-    """Brax, Gymnasium and MuJoCo are loaded by the adapter that needs them, on first use, never before."""
-    _run_fresh("""
-        import sys
-        import lagrange, lagrange.interop, lagrange.interop.mjcf, lagrange.tasks
-        assert {"BraxEnv", "GymEnv", "brax_training_compat", "to_mjcf"} <= set(dir(lagrange.interop))
-        assert lagrange.interop.to_mjcf is lagrange.interop.mjcf.to_mjcf
-        loaded = [m for m in sys.modules if m.split(".")[0] in ("brax", "gymnasium", "mujoco")]
-        assert not loaded, loaded
-    """)
-
-
-def test_importing_the_adapters_changes_no_other_module():
-    """Importing lagrange.interop.brax and lagrange.interop.gymnasium leaves every module that was loaded before
-    as it was (same names bound to the same objects), ``jax`` above all: in particular it does not put back
-    ``jax.device_put_replicated``. The engines' own imports come first, so that what they do to ``jax`` (Brax
-    imports ``jax.flatten_util``, which binds it on ``jax``) is not counted; the only names allowed to appear
-    are the new submodules bound on their parent packages."""
-    _run_fresh("""
-        import sys
-        import jax
-        import brax.envs.base, gymnasium, lagrange.tasks, lagrange.kinematics
-
-        def namespaces():  # every loaded module but this script's own (__main__)
-            return {name: {k: id(v) for k, v in vars(m).items()}
-                    for name, m in list(sys.modules.items()) if m is not None and m is not sys.modules["__main__"]}
-
-        had = {name: hasattr(jax, name) for name in ("device_put_replicated", "device_put_sharded")}
-        jax_names, before = sorted(dir(jax)), namespaces()
-        import lagrange.interop.brax, lagrange.interop.gymnasium
-        after = namespaces()
-        assert sorted(dir(jax)) == jax_names, set(dir(jax)) ^ set(jax_names)
-        assert {name: hasattr(jax, name) for name in had} == had, had
-        changed = {}
-        for name, ns in before.items():
-            new = {k for k in after[name].keys() - ns.keys() if f"{name}.{k}" not in sys.modules}
-            rebound = {k for k in ns if after[name].get(k) != ns[k]}
-            if new or rebound:
-                changed[name] = (sorted(new), sorted(rebound))
-        assert not changed, changed
-    """)
 
 
 def test_brax_training_compat_installs_the_removed_jax_names_for_its_duration_only(monkeypatch):
@@ -113,10 +61,6 @@ def test_brax_training_compat_installs_the_removed_jax_names_for_its_duration_on
     with brax_training_compat():
         assert jax.device_put_sharded is mine and jax.device_put_replicated is api.device_put_replicated
     assert jax.device_put_sharded is mine and not hasattr(jax, "device_put_replicated")
-
-
-# ---------------------------------------------------------------------------------------------
-# Brax
 
 
 def test_brax_env_reproduces_the_task_and_ends_at_the_horizon():
@@ -186,46 +130,3 @@ def test_brax_ppo_runs_one_iteration_on_a_task():
     obs = jnp.zeros(task.observation_size, jnp.float32)
     action, _ = policy(obs, jax.random.PRNGKey(0))
     assert action.shape == (1,) and bool(jnp.all(jnp.abs(action) <= 1.0))
-
-
-# ---------------------------------------------------------------------------------------------
-# Gymnasium
-
-
-def test_gym_env_passes_check_env():
-    from gymnasium.utils.env_checker import check_env
-
-    from lagrange.interop.gymnasium import GymEnv
-
-    for name in ("acrobot", "cartpole", "double_cartpole"):
-        check_env(GymEnv(make_task(name), render_mode="rgb_array"), skip_render_check=False)
-
-
-def test_gym_env_reproduces_the_task_truncates_at_the_horizon_and_renders():
-    from lagrange.interop.gymnasium import GymEnv
-
-    task = dataclasses.replace(make_task("acrobot"), horizon=5)
-    env = GymEnv(task, render_mode="rgb_array")
-    obs, info = env.reset(seed=3)
-    obs_again, _ = GymEnv(task).reset(seed=3)
-    np.testing.assert_array_equal(obs, obs_again)  # the seed reproduces the start
-    assert obs.dtype == np.float32 and obs.shape == env.observation_space.shape and info == {}
-    actions = np.array([[0.3], [-2.0], [1.0], [0.0], [0.7]], np.float32)
-    q = jnp.asarray(env._state.q)
-    qd = jnp.asarray(env._state.qd)
-    from lagrange.tasks import TaskState
-
-    s = TaskState(q, qd)
-    for t, a in enumerate(actions):
-        obs, reward, terminated, truncated, info = env.step(a)
-        s2 = task.step(s, jnp.asarray(a, jnp.float64))
-        np.testing.assert_allclose(reward, float(task.reward(s, a, s2)), rtol=1e-12)
-        np.testing.assert_array_equal(obs, np.asarray(task.observe(s2), np.float32))
-        np.testing.assert_allclose(info["q"], np.asarray(s2.q), rtol=1e-12)
-        assert terminated is False and truncated is (t == 4)
-        s = s2
-    frame = env.render()
-    assert frame.shape == (240, 320, 3) and frame.dtype == np.uint8
-    # The chain is drawn: blue-ish pixels of the links exist, and the frame is not uniform.
-    blue = (frame[..., 2] > 150) & (frame[..., 0] < 100)
-    assert blue.sum() > 100 and frame.std() > 10

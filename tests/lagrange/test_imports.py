@@ -3,14 +3,20 @@
 Every import counts, at module level or inside a function (a local import only hides a circle from Python's import
 machinery; the modules still depend on each other). ``from lagrange import x`` is an edge to ``lagrange.x`` when ``x``
 is a module, else to the package (its ``__init__``).
+
+Importing ``lagrange`` or ``lagrange.interop`` loads no optional engine (Brax, Gymnasium, MuJoCo), and importing
+the adapters changes no other module (``jax`` above all); both are checked in a fresh interpreter.
 """
 
 import ast
 import pathlib
+import subprocess
+import sys
+import textwrap
 
 import pytest
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
+ROOT = pathlib.Path(__file__).resolve().parents[2]  # the repository
 
 
 def _module_name(path: pathlib.Path) -> str:
@@ -88,3 +94,52 @@ def test_no_import_circle(package):
 def test_chain_imports_no_other_module():
     """``lagrange.chain`` is the root of the physics: the parameters and their checks, no dynamics."""
     assert import_graph("lagrange")["lagrange.chain"] == set()
+
+
+def _run_fresh(code: str) -> None:
+    """Run ``code`` in a fresh interpreter (nothing imported yet); fails with its stderr if it fails."""
+    r = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+
+
+def test_importing_lagrange_and_lagrange_interop_imports_no_optional_engine():
+    """Brax, Gymnasium and MuJoCo are loaded by the adapter that needs them, on first use, never before."""
+    _run_fresh("""
+        import sys
+        import lagrange, lagrange.interop, lagrange.interop.mjcf, lagrange.tasks
+        assert {"BraxEnv", "GymEnv", "brax_training_compat", "to_mjcf"} <= set(dir(lagrange.interop))
+        assert lagrange.interop.to_mjcf is lagrange.interop.mjcf.to_mjcf
+        loaded = [m for m in sys.modules if m.split(".")[0] in ("brax", "gymnasium", "mujoco")]
+        assert not loaded, loaded
+    """)
+
+
+def test_importing_the_adapters_changes_no_other_module():
+    """Importing lagrange.interop.brax and lagrange.interop.gymnasium leaves every module that was loaded before
+    as it was (same names bound to the same objects), ``jax`` above all: in particular it does not put back
+    ``jax.device_put_replicated``. The engines' own imports come first, so that what they do to ``jax`` (Brax
+    imports ``jax.flatten_util``, which binds it on ``jax``) is not counted; the only names allowed to appear
+    are the new submodules bound on their parent packages."""
+    _run_fresh("""
+        import sys
+        import jax
+        import brax.envs.base, gymnasium, lagrange.tasks, lagrange.kinematics
+
+        def namespaces():  # every loaded module but this script's own (__main__)
+            return {name: {k: id(v) for k, v in vars(m).items()}
+                    for name, m in list(sys.modules.items()) if m is not None and m is not sys.modules["__main__"]}
+
+        had = {name: hasattr(jax, name) for name in ("device_put_replicated", "device_put_sharded")}
+        jax_names, before = sorted(dir(jax)), namespaces()
+        import lagrange.interop.brax, lagrange.interop.gymnasium
+        after = namespaces()
+        assert sorted(dir(jax)) == jax_names, set(dir(jax)) ^ set(jax_names)
+        assert {name: hasattr(jax, name) for name in had} == had, had
+        changed = {}
+        for name, ns in before.items():
+            new = {k for k in after[name].keys() - ns.keys() if f"{name}.{k}" not in sys.modules}
+            rebound = {k for k in ns if after[name].get(k) != ns[k]}
+            if new or rebound:
+                changed[name] = (sorted(new), sorted(rebound))
+        assert not changed, changed
+    """)

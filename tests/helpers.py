@@ -1,0 +1,217 @@
+"""Helpers shared by several test modules (the oracles they compare against live in ``tests/oracles/``).
+
+- ``assert_close``, ``states``, ``per_state`` and ``random_chain``: random chains and states for the checks of the
+  equations of motion (``tests/lagrange/test_dynamics.py``, ``test_recursive.py``, ``test_systems.py``).
+- ``seeded_chain``, ``mujoco_model``, ``mujoco_rollout``, ``random_problem``, ``rel``, ``SYSTEMS`` and ``CHAINS``:
+  the chains exported to MuJoCo C and Brax and their rollouts (``tests/lagrange/test_against_mujoco.py``,
+  ``test_against_brax.py`` and ``tests/lagrange/interop/test_mjcf.py``). Errors there are
+
+      rel(a, b) = max|a - b| / max(1, max|b|)
+
+  (the largest error relative to the reference's largest entry, absolute below 1).
+- ``param_count``, ``pendulum_swingup`` (a small task a trainer learns in seconds), ``tiny_ce_apg_config`` and
+  ``ROOT`` (the repository, the working directory of the tests that start a fresh interpreter): ``tests/policies/``
+  and ``tests/optim/``.
+"""
+
+from __future__ import annotations
+
+import math
+import pathlib
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import lagrange as lg
+from lagrange.chain import Chain, Link
+from lagrange.interop.mjcf import to_mjcf
+from lagrange.tasks import chain_swingup
+
+
+REL = 1e-12  # M, bias and gravity forces in float64: see tests/lagrange/test_dynamics.py's docstring
+
+
+def assert_close(actual, expected, rel=REL, what=""):
+    """max |actual - expected| <= rel * max(1, max |expected|)."""
+    actual, expected = np.asarray(actual), np.asarray(expected)
+    assert actual.shape == expected.shape, (what, actual.shape, expected.shape)
+    scale = max(1.0, float(np.max(np.abs(expected))))
+    err = float(np.max(np.abs(actual - expected)))
+    assert err <= rel * scale, f"{what}: max error {err:.3g} > {rel:.1e} x scale {scale:.3g}"
+
+
+def states(rng, n, k=16):
+    """k random states with angles over the whole circle and velocities up to 3 rad/s."""
+    q = jnp.asarray(rng.uniform(-np.pi, np.pi, (k, n)))
+    qd = jnp.asarray(rng.uniform(-3.0, 3.0, (k, n)))
+    return q, qd
+
+
+def per_state(f, chain, *xs):
+    """Evaluate a single-state function at each of a stack of states (no reliance on batch dims)."""
+    return jax.jit(jax.vmap(lambda *x: f(chain, *x)))(*xs)
+
+
+def random_chain(rng, n, damped=0.5, *, cart=False, gravity=None):
+    """A random chain of n links: mixed joints, random prismatic axes, com, inertia, and
+    damping/armature/gear present on random subsets of the joints. ``cart``: link 0 is a prismatic
+    cart on the x axis. ``gravity``: fixed, or None for one drawn by ``n`` (``tests/lagrange/test_recursive.py``
+    fixes it by ``n``)."""
+    links = []
+    for i in range(n):
+        base_cart = cart and i == 0
+        prismatic = base_cart or rng.random() < 0.35
+        axis = float(rng.uniform(-np.pi, np.pi)) if prismatic and not base_cart and rng.random() < 0.7 else 0.0
+        length = float(rng.uniform(0.2, 1.5))
+        links.append(
+            Link(
+                "prismatic" if prismatic else "revolute",
+                float(rng.uniform(0.3, 3.0)),
+                length,
+                com=float(rng.uniform(0.0, length)) if rng.random() < 0.5 else None,
+                inertia=float(rng.uniform(0.01, 0.5)) if rng.random() < 0.5 else None,
+                axis=axis,
+                damping=float(rng.uniform(0.05, 1.0)) if rng.random() < damped else 0.0,
+                armature=float(rng.uniform(0.01, 0.2)) if rng.random() < 0.5 else 0.0,
+                gear=float(rng.uniform(0.5, 5.0)) if rng.random() < 0.5 else None,
+            )
+        )
+    if gravity is None:
+        gravity = (0.0, float(rng.uniform(1.0, 20.0)), 9.81)[n % 3] if damped < 1 else 9.81
+    return Chain(links, gravity=gravity)
+
+
+# --------------------------------------------------------------- MuJoCo C and Brax on the exported model
+
+TRAJECTORY = 1e-9  # 500-step trajectories (see tests/lagrange/test_against_mujoco.py's docstring)
+
+
+# Catalogue systems with their physics step from the paper (control dt / substeps).
+SYSTEMS = {
+    "pendulum": (lambda: lg.systems.pendulum(damping=0.1), 0.01),
+    "cartpole": (lg.systems.cartpole, 0.04 / 8),
+    "double_cartpole": (lg.systems.double_cartpole, 0.01 / 12),
+    "acrobot": (lg.systems.acrobot, 0.01 / 4),
+}
+
+
+def rel(a, b) -> float:
+    """max|a - b| / max(1, max|b|)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return float(np.max(np.abs(a - b)) / max(1.0, float(np.max(np.abs(b)))))
+
+
+def seeded_chain(seed: int, *, slide_below_hinge: bool = True) -> Chain:
+    """A seeded random chain of 2-8 links with mixed joints, damping, armature and gears.
+
+    With ``slide_below_hinge=False`` no prismatic joint follows a revolute one (the chains that
+    Brax 0.14 simulates correctly).
+    """
+    rng = np.random.default_rng(seed)
+    n = 2 + seed % 7  # seeds 0..6 cover every size from 2 to 8
+    specs = []
+    seen_revolute = False
+    for i in range(n):
+        prismatic = rng.random() < (0.5 if i == 0 else 0.3)
+        if prismatic and seen_revolute and not slide_below_hinge:
+            prismatic = False
+        seen_revolute |= not prismatic
+        length = float(rng.uniform(0.2, 1.0)) if (not prismatic or rng.random() < 0.5) else 0.0
+        specs.append(
+            dict(
+                joint="prismatic" if prismatic else "revolute",
+                mass=float(rng.uniform(0.3, 3.0)),
+                length=length,
+                com=float(rng.uniform(0.0, 1.0)) * length,
+                inertia=float(rng.uniform(0.01, 0.3)) if rng.random() < 0.5 else None,
+                axis=float(rng.uniform(-math.pi, math.pi)) if prismatic and rng.random() < 0.5 else 0.0,
+                damping=float(rng.uniform(0.05, 1.0)) if rng.random() < 0.5 else 0.0,
+                armature=float(rng.uniform(0.01, 0.3)) if rng.random() < 0.4 else 0.0,
+                gear=float(abs(rng.choice([-1, 1]) * rng.uniform(0.5, 5.0))) if rng.random() < 0.6 else None,
+            )
+        )
+    if all(spec["gear"] is None for spec in specs):
+        specs[0]["gear"] = 1.0
+    links = [Link(**spec) for spec in specs]
+    return Chain(links, gravity=9.81)
+
+
+def has_slide_below_hinge(chain: Chain) -> bool:
+    first_revolute = chain.joints.index("revolute") if "revolute" in chain.joints else chain.n
+    return "prismatic" in chain.joints[first_revolute:]
+
+
+def mujoco_model(chain: Chain, dt: float, integrator: str = "Euler"):
+    """MuJoCo's compiled model of ``to_mjcf(chain)`` and its data."""
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(to_mjcf(chain, timestep=dt, integrator=integrator))
+    return model, mujoco.MjData(model)
+
+
+def mujoco_rollout(model, data, q0, qd0, controls):
+    """MuJoCo C ``mj_step`` rollouts (batched over leading dims of q0/qd0/controls).
+
+    q0, qd0: (B, n); controls: (B, T, m). Returns q, qd of shape (B, T, n) after each step.
+    """
+    from mujoco import rollout as mj_rollout_module
+
+    q0, qd0, controls = np.atleast_2d(q0), np.atleast_2d(qd0), np.asarray(controls, dtype=float)
+    if controls.ndim == 2:
+        controls = controls[None]
+    batch = max(q0.shape[0], controls.shape[0])
+    n = model.nq
+    state0 = np.zeros((batch, 1 + 2 * n))
+    state0[:, 1 : 1 + n] = q0
+    state0[:, 1 + n :] = qd0
+    if model.nu == 0:
+        controls = np.zeros(controls.shape[:2] + (0,))
+    state, _ = mj_rollout_module.rollout(model, data, state0, np.broadcast_to(controls, (batch,) + controls.shape[1:]))
+    return state[:, :, 1 : 1 + n], state[:, :, 1 + n :]
+
+
+def random_problem(chain: Chain, seed: int, steps: int = 500, *, scale=0.3, control_scale=1.0):
+    rng = np.random.default_rng(seed)
+    q0 = scale * rng.standard_normal(chain.n)
+    qd0 = scale * rng.standard_normal(chain.n)
+    us = control_scale * rng.standard_normal((steps, chain.m))
+    return q0, qd0, us
+
+
+def _all_chains():
+    """The catalogue systems at their paper steps and ten seeded random chains, as pytest params (chain, dt)."""
+    out = [pytest.param(make(), dt, id=name) for name, (make, dt) in SYSTEMS.items()]
+    out += [pytest.param(seeded_chain(seed), 0.005, id=f"random{seed}") for seed in range(10)]
+    return out
+
+
+CHAINS = _all_chains()
+
+
+# --------------------------------------------------------------- policies and trainers
+
+
+def param_count(tree):
+    """The number of array entries in a pytree (the parameters of an equinox module)."""
+    return sum(x.size for x in jax.tree_util.tree_leaves(eqx.filter(tree, eqx.is_array)))
+
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent  # the repository: the cwd of subprocess tests
+
+
+def tiny_ce_apg_config():
+    """A CE-APG config small enough for a test (4 candidates, 3 iterations of 2 APG steps on 20-step acrobot
+    episodes), shared by the checkpoint, host-loop and CE-APG tests."""
+    from optim import ce_apg
+
+    return ce_apg.CEAPGConfig(task="acrobot", num_candidates=4, num_elites=2, iterations=3, apg_steps=2, episodes=1,
+                              horizon=20, width=4, fitness_window=1, lr_start=1e-2, lr_end=1e-3)
+
+
+def pendulum_swingup(horizon=100, noise=0.01):
+    """A small task: pendulum swing-up (1 kg, 1 m, torque 5 a N m; gravity's largest torque is 4.9 N m)
+    with the acrobot's reward 10 - th^2 - 0.01 dth^2 per step, dt 0.05 s."""
+    return chain_swingup(lg.systems.pendulum(gear=5.0), dt=0.05, horizon=horizon, noise=noise)
