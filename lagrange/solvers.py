@@ -46,7 +46,7 @@ class SemiImplicitEuler(eqx.Module):
     It updates velocities, not momenta, so it is symplectic (bounded energy error) only where
     ``M`` is constant, e.g. a single pendulum or a cart; on a double pendulum its energy error
     drifts (measured: -0.48 of the energy above rest over 1e5 steps of 1e-3 s, see
-    ``tests/test_stability.py``). It is here because it is exactly MuJoCo's and Brax's step.
+    ``tests/lagrange/test_stability.py``). It is here because it is exactly MuJoCo's and Brax's step.
 
     ``qd' = qd + h qdd``, ``q' = q + h qd'``, where joint damping enters the velocity update
     implicitly: ``(M + h diag(damping)) qdd = B u - C qd - T - damping qd``. This is MuJoCo's

@@ -6,8 +6,8 @@ Splitting the host into one device per core and sharding the candidate axis over
 :func:`optim.ce_apg.make_trainer` already does for any device count) runs the candidates on every core. Measured on
 the project's 2-core machine, acrobot, 24 candidates x 10 APG steps x 2 episodes x 500 steps: 0.80 s per iteration
 on one device, 0.36 s on two, 0.43 s on four, 0.58 s on eight. One iteration equals the single-device result to
-round-off (``tests/test_optim.py::test_sharded_equals_single_device``); over a long run chaotic training amplifies that
-round-off, so a seed's outcome can differ with the device count (docs, "Training").
+round-off (``tests/optim/test_devices.py::test_sharded_equals_single_device``); over a long run chaotic training
+amplifies that round-off, so a seed's outcome can differ with the device count (docs, "Training").
 
 Call :func:`use_cpu_cores` before the first JAX computation (importing ``jax``, ``lagrange`` or ``optim`` is
 fine). It changes only the CPU platform: on a machine with a GPU, ``jax.devices()`` is still the GPU.
