@@ -8,10 +8,14 @@ the actor's evaluation action the rollout interface of the other policies here.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.typing import DTypeLike
+from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
 __all__ = ["Actor", "Critic", "DeterministicPolicy"]
 
@@ -19,12 +23,12 @@ __all__ = ["Actor", "Critic", "DeterministicPolicy"]
 class _MLP(eqx.Module):
     """Linear -> ELU -> LayerNorm for each hidden layer, then a linear output (all non-arrays static)."""
 
-    hidden: tuple
-    norms: tuple
+    hidden: tuple[eqx.nn.Linear, ...]
+    norms: tuple[eqx.nn.LayerNorm, ...]
     out: eqx.nn.Linear
 
-    def __init__(self, in_size: int, out_size: int, units: tuple[int, ...], *, orthogonal_gain: float | None, key,
-                 dtype=None):
+    def __init__(self, in_size: int, out_size: int, units: tuple[int, ...], *, orthogonal_gain: float | None,
+                 key: PRNGKeyArray, dtype: DTypeLike | None = None):
         keys = jax.random.split(key, len(units) + 1)
         sizes = (in_size,) + tuple(units)
         layers = [eqx.nn.Linear(a, b, dtype=dtype, key=k) for a, b, k in zip(sizes[:-1], sizes[1:], keys)]
@@ -43,7 +47,7 @@ class _MLP(eqx.Module):
         self.norms = tuple(eqx.nn.LayerNorm(u, eps=1e-5, dtype=dtype) for u in units)
         self.out = out
 
-    def __call__(self, x):
+    def __call__(self, x: Float[ArrayLike, " in_size"]) -> Float[Array, " out_size"]:
         for lin, norm in zip(self.hidden, self.norms):
             x = norm(jax.nn.elu(lin(x)))
         return self.out(x)
@@ -51,48 +55,93 @@ class _MLP(eqx.Module):
 
 class Actor(eqx.Module):
     """Stochastic tanh-Gaussian actor: ``a = tanh(mu(obs) + exp(log_std) eps)``, ``eps ~ N(0, I)``;
-    ``log_std`` (action_size,) does not depend on the state. ``obs`` is the normalised observation."""
+    ``log_std`` (action_size,) does not depend on the state. ``obs`` is the normalised observation.
+    Unbatched: ``jax.vmap`` the methods over environments.
+
+    Args:
+        obs_size: length of the (normalised) observation vector.
+        action_size: number of actions (dimensionless, in ``(-1, 1)``; the task multiplies them by the
+            chain's gear).
+        units: widths of the hidden layers of ``mu``.
+        init_log_std: initial value of every component of ``log_std`` (log of a dimensionless std).
+        key: PRNG key for the initial weights.
+        dtype: floating dtype of the weights; ``None`` for JAX's default.
+    """
 
     mu: _MLP
-    log_std: jax.Array
+    log_std: Float[Array, " action_size"]
 
-    def __init__(self, obs_size: int, action_size: int, units=(64, 64), init_log_std: float = -1.0, *, key,
-                 dtype=None):
+    def __init__(self, obs_size: int, action_size: int, units: Sequence[int] = (64, 64), init_log_std: float = -1.0,
+                 *, key: PRNGKeyArray, dtype: DTypeLike | None = None):
         self.mu = _MLP(obs_size, action_size, tuple(units), orthogonal_gain=None, key=key, dtype=dtype)
         self.log_std = jnp.full(action_size, init_log_std, self.mu.out.weight.dtype)
 
-    def sample(self, obs, key):
-        """A reparameterised stochastic action in (-1, 1) (differentiable in the parameters and ``obs``)."""
+    def sample(self, obs: Float[ArrayLike, " obs_size"], key: PRNGKeyArray) -> Float[Array, " action_size"]:
+        """A reparameterised stochastic action in (-1, 1) (differentiable in the parameters and ``obs``).
+
+        Args:
+            obs: the normalised observation, shape ``(obs_size,)``.
+            key: PRNG key for the Gaussian noise ``eps``.
+
+        Returns:
+            The action, shape ``(action_size,)``, dimensionless.
+        """
         mu = self.mu(obs)
         eps = jax.random.normal(key, mu.shape, mu.dtype)
         return jnp.tanh(mu + jnp.exp(self.log_std) * eps)
 
-    def deterministic(self, obs):
-        """The evaluation action ``tanh(mu(obs))``."""
+    def deterministic(self, obs: Float[ArrayLike, " obs_size"]) -> Float[Array, " action_size"]:
+        """The evaluation action ``tanh(mu(obs))``, shape ``(action_size,)``, dimensionless, for the
+        normalised observation ``obs`` of shape ``(obs_size,)``."""
         return jnp.tanh(self.mu(obs))
 
 
 class Critic(eqx.Module):
-    """State-value critic ``V(obs)`` (scalar) on normalised observations."""
+    """State-value critic ``V(obs)`` (scalar) on normalised observations. Unbatched: ``jax.vmap`` it
+    over environments.
+
+    Args:
+        obs_size: length of the (normalised) observation vector.
+        units: widths of the hidden layers.
+        key: PRNG key for the initial weights.
+        dtype: floating dtype of the weights; ``None`` for JAX's default.
+    """
 
     net: _MLP
 
-    def __init__(self, obs_size: int, units=(64, 64), *, key, dtype=None):
+    def __init__(self, obs_size: int, units: Sequence[int] = (64, 64), *, key: PRNGKeyArray,
+                 dtype: DTypeLike | None = None):
         self.net = _MLP(obs_size, 1, tuple(units), orthogonal_gain=float(np.sqrt(2.0)), key=key, dtype=dtype)
 
-    def __call__(self, obs):
+    def __call__(self, obs: Float[ArrayLike, " obs_size"]) -> Float[Array, ""]:
+        """The value of the normalised observation ``obs`` (shape ``(obs_size,)``): a scalar, in the
+        task's reward units (a discounted sum of rewards)."""
         return self.net(obs)[0]
 
 
 class DeterministicPolicy(eqx.Module):
     """The actor's evaluation policy with the rollout interface of :mod:`policies`
-    (``policy(obs, hidden, reset) -> (action, hidden)``, a (0,)-sized hidden state)."""
+    (``policy(obs, hidden, reset) -> (action, hidden)``, a (0,)-sized hidden state).
+
+    Args:
+        actor: the trained :class:`Actor`.
+        hidden_size: always 0 (the policy is stateless); static.
+    """
 
     actor: Actor
     hidden_size: int = eqx.field(static=True, default=0)
 
-    def initial_state(self):
+    def initial_state(self) -> Float[Array, " 0"]:
+        """The empty hidden state, shape ``(0,)``, in the actor's dtype."""
         return jnp.zeros(0, self.actor.log_std.dtype)
 
-    def __call__(self, obs, hidden, reset=False):
+    def __call__(
+        self,
+        obs: Float[ArrayLike, " obs_size"],
+        hidden: Float[Array, " 0"],
+        reset: Bool[ArrayLike, ""] = False,
+    ) -> tuple[Float[Array, " action_size"], Float[Array, " 0"]]:
+        """``(actor.deterministic(obs), hidden)``: the action in ``(-1, 1)``, shape ``(action_size,)``
+        (dimensionless), for the normalised observation of shape ``(obs_size,)``; ``hidden`` (shape
+        ``(0,)``) is returned unchanged and ``reset`` is unused."""
         return self.actor.deterministic(obs), hidden

@@ -5,6 +5,8 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+from jax.typing import DTypeLike
+from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
 
 class GRUPolicy(eqx.Module):
@@ -15,6 +17,14 @@ class GRUPolicy(eqx.Module):
     The hidden state is explicit: ``policy(obs, hidden, reset) -> (action, hidden)`` with
     ``obs`` (obs_size,), ``hidden`` (obs_size,) and actions in ``[-1, 1]`` (action_size,). When
     ``reset`` is true (an episode starts) the incoming hidden state is replaced by zeros.
+
+    Args:
+        obs_size: length of the (normalised) observation vector, >= 1; also the GRU's hidden size.
+        action_size: number of actions, >= 1 (dimensionless, in ``[-1, 1]``; the task multiplies
+            them by the chain's gear).
+        width: ``H``, the width of the dense layers, >= 1.
+        key: PRNG key for the initial weights.
+        dtype: floating dtype of the weights; ``None`` for JAX's default.
     """
 
     embed: eqx.nn.Linear
@@ -24,7 +34,8 @@ class GRUPolicy(eqx.Module):
     head: eqx.nn.Linear
     hidden_size: int = eqx.field(static=True)
 
-    def __init__(self, obs_size: int, action_size: int, width: int = 16, *, key, dtype=None):
+    def __init__(self, obs_size: int, action_size: int, width: int = 16, *, key: PRNGKeyArray,
+                 dtype: DTypeLike | None = None):
         for name, v in (("obs_size", obs_size), ("action_size", action_size), ("width", width)):
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise ValueError(f"GRUPolicy {name} must be an integer >= 1, got {v!r}")
@@ -36,11 +47,27 @@ class GRUPolicy(eqx.Module):
         self.head = eqx.nn.Linear(width, action_size, dtype=dtype, key=k[4])
         self.hidden_size = obs_size
 
-    def initial_state(self) -> jax.Array:
-        """The zero hidden state (hidden_size,)."""
+    def initial_state(self) -> Float[Array, " obs_size"]:
+        """The zero hidden state, shape ``(hidden_size,) = (obs_size,)``, in the weights' dtype."""
         return jnp.zeros(self.hidden_size, self.fc1.weight.dtype)
 
-    def __call__(self, obs, hidden, reset=False):
+    def __call__(
+        self,
+        obs: Float[ArrayLike, " obs_size"],
+        hidden: Float[Array, " obs_size"],
+        reset: Bool[ArrayLike, ""] = False,
+    ) -> tuple[Float[Array, " action_size"], Float[Array, " obs_size"]]:
+        """One step of the policy (unbatched; ``jax.vmap`` it over environments).
+
+        Args:
+            obs: the (normalised) observation, shape ``(obs_size,)``.
+            hidden: the hidden state carried from the previous step, shape ``(obs_size,)``.
+            reset: scalar; if true (an episode starts), ``hidden`` is replaced by zeros first.
+
+        Returns:
+            ``(action, hidden)``: the action in ``[-1, 1]``, shape ``(action_size,)`` (dimensionless),
+            and the new hidden state, shape ``(obs_size,)``.
+        """
         hidden = jnp.where(reset, jnp.zeros_like(hidden), hidden)
         x = jax.nn.relu(self.embed(obs))
         hidden = self.cell(x, hidden)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+from jax.typing import DTypeLike
+from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
 
 class MLPPolicy(eqx.Module):
@@ -12,12 +14,22 @@ class MLPPolicy(eqx.Module):
 
     Stateless, but it takes and returns a (0,)-sized hidden state so that rollouts treat every
     policy alike: ``policy(obs, hidden, reset) -> (action, hidden)``.
+
+    Args:
+        obs_size: length of the (normalised) observation vector, >= 1.
+        action_size: number of actions, >= 1 (dimensionless, in ``[-1, 1]``; the task multiplies
+            them by the chain's gear).
+        width: width of each hidden layer, >= 1.
+        depth: number of hidden layers, >= 0 (0: one linear layer, then tanh).
+        key: PRNG key for the initial weights.
+        dtype: floating dtype of the weights; ``None`` for JAX's default.
     """
 
     mlp: eqx.nn.MLP
     hidden_size: int = eqx.field(static=True, default=0)
 
-    def __init__(self, obs_size: int, action_size: int, width: int = 64, depth: int = 2, *, key, dtype=None):
+    def __init__(self, obs_size: int, action_size: int, width: int = 64, depth: int = 2, *, key: PRNGKeyArray,
+                 dtype: DTypeLike | None = None):
         for name, v in (("obs_size", obs_size), ("action_size", action_size), ("width", width)):
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise ValueError(f"MLPPolicy {name} must be an integer >= 1, got {v!r}")
@@ -27,8 +39,25 @@ class MLPPolicy(eqx.Module):
                               final_activation=jnp.tanh, dtype=dtype, key=key)
         self.hidden_size = 0
 
-    def initial_state(self) -> jax.Array:
+    def initial_state(self) -> Float[Array, " 0"]:
+        """The empty hidden state, shape ``(0,)``, in the weights' dtype."""
         return jnp.zeros(0, self.mlp.layers[-1].weight.dtype)
 
-    def __call__(self, obs, hidden, reset=False):
+    def __call__(
+        self,
+        obs: Float[ArrayLike, " obs_size"],
+        hidden: Float[Array, " 0"],
+        reset: Bool[ArrayLike, ""] = False,
+    ) -> tuple[Float[Array, " action_size"], Float[Array, " 0"]]:
+        """One step of the policy (unbatched; ``jax.vmap`` it over environments).
+
+        Args:
+            obs: the (normalised) observation, shape ``(obs_size,)``.
+            hidden: the empty hidden state, shape ``(0,)``, returned unchanged.
+            reset: unused (the policy has no state); accepted for the common interface.
+
+        Returns:
+            ``(action, hidden)``: the action in ``[-1, 1]``, shape ``(action_size,)`` (dimensionless),
+            and ``hidden`` unchanged.
+        """
         return self.mlp(obs), hidden

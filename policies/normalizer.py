@@ -5,23 +5,39 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+from jax.typing import DTypeLike
+from jaxtyping import Array, ArrayLike, Float
 
 
 class Normalizer(eqx.Module):
     """Running mean and variance of observations (size,), applied as ``clip((x - mean) / std, -clip, clip)``.
 
     Pure: :meth:`update` returns a new normaliser; nothing is mutated. Before the first update
-    (``count == 0``) it is the identity up to clipping.
+    (``count == 0``) it is the identity up to clipping. Build one with :meth:`create`.
+
+    Args:
+        mean: running mean of each observation component, shape ``(size,)``, in the observation's units.
+        var: running (population) variance of each component, shape ``(size,)``, in those units squared.
+        count: scalar, number of observations merged so far (stored as a float).
+        clip: bound on the normalised output (dimensionless, in standard deviations), > 0; static.
+        eps: added to ``var`` before the square root; static.
     """
 
-    mean: jax.Array
-    var: jax.Array
-    count: jax.Array
+    mean: Float[Array, " size"]
+    var: Float[Array, " size"]
+    count: Float[Array, ""]
     clip: float = eqx.field(static=True, default=5.0)
     eps: float = eqx.field(static=True, default=1e-6)
 
     @classmethod
-    def create(cls, size: int, *, clip: float = 5.0, dtype=None) -> "Normalizer":
+    def create(cls, size: int, *, clip: float = 5.0, dtype: DTypeLike | None = None) -> Normalizer:
+        """An empty normaliser: ``mean = 0``, ``var = 1``, ``count = 0``.
+
+        Args:
+            size: length of the observation vector, >= 1.
+            clip: bound on the normalised output [standard deviations], > 0.
+            dtype: floating dtype of the statistics; ``None`` for JAX's default.
+        """
         if size < 1:
             raise ValueError(f"Normalizer size must be >= 1, got {size}")
         if not clip > 0:
@@ -29,8 +45,15 @@ class Normalizer(eqx.Module):
         dtype = dtype or jnp.zeros(()).dtype
         return cls(jnp.zeros(size, dtype), jnp.ones(size, dtype), jnp.zeros((), dtype), clip=clip)
 
-    def update(self, obs) -> "Normalizer":
-        """Merge a batch of observations (..., size) into the running statistics (no gradient flows)."""
+    def update(self, obs: Float[ArrayLike, "*batch size"]) -> Normalizer:
+        """Merge a batch of observations into the running statistics (no gradient flows).
+
+        Args:
+            obs: observations, shape ``(*batch, size)``; every leading index is one sample.
+
+        Returns:
+            The updated normaliser (``self`` is unchanged).
+        """
         obs = jax.lax.stop_gradient(jnp.asarray(obs)).reshape(-1, self.mean.shape[0]).astype(self.mean.dtype)
         n = jnp.asarray(obs.shape[0], self.mean.dtype)
         bmean = jnp.mean(obs, axis=0)
@@ -42,6 +65,14 @@ class Normalizer(eqx.Module):
         m2 = old_var * self.count + bvar * n + delta**2 * self.count * n / total
         return Normalizer(mean, m2 / total, total, clip=self.clip, eps=self.eps)
 
-    def __call__(self, obs):
+    def __call__(self, obs: Float[ArrayLike, "*batch size"]) -> Float[Array, "*batch size"]:
+        """Normalise observations: ``clip((obs - mean) / sqrt(var + eps), -clip, clip)``.
+
+        Args:
+            obs: observations, shape ``(*batch, size)``, in the task's units.
+
+        Returns:
+            Shape ``(*batch, size)``, dimensionless (standard deviations).
+        """
         z = (obs - self.mean) / jnp.sqrt(self.var + self.eps)
         return jnp.clip(z, -self.clip, self.clip)
