@@ -4,6 +4,6 @@ observation normaliser."""
 from policies.actor_critic import Actor, Critic, DeterministicPolicy
 from policies.gru import GRUPolicy
 from policies.mlp import MLPPolicy
-from policies.normalizer import Normalizer
+from policies.normalizer import BraxNormalizer, Normalizer
 
-__all__ = ["GRUPolicy", "MLPPolicy", "Normalizer", "Actor", "Critic", "DeterministicPolicy"]
+__all__ = ["GRUPolicy", "MLPPolicy", "Normalizer", "BraxNormalizer", "Actor", "Critic", "DeterministicPolicy"]

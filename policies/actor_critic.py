@@ -70,11 +70,27 @@ class Actor(eqx.Module):
 
     mu: _MLP
     log_std: Float[Array, " action_size"]
+    init_log_std: float = eqx.field(static=True)
 
     def __init__(self, obs_size: int, action_size: int, units: Sequence[int] = (64, 64), init_log_std: float = -1.0,
                  *, key: PRNGKeyArray, dtype: DTypeLike | None = None):
         self.mu = _MLP(obs_size, action_size, tuple(units), orthogonal_gain=None, key=key, dtype=dtype)
         self.log_std = jnp.full(action_size, init_log_std, self.mu.out.weight.dtype)
+        self.init_log_std = float(init_log_std)
+
+    @classmethod
+    def for_task(cls, task, units: Sequence[int] = (64, 64), init_log_std: float = -1.0, *,
+                 key: PRNGKeyArray | None = None, dtype: DTypeLike | None = None) -> "Actor":
+        """An actor sized for ``task`` (its ``observation_size`` and ``action_size``); ``key`` defaults to
+        ``PRNGKey(0)`` (SHAC draws its own initial weights with :meth:`reinit`)."""
+        key = jax.random.PRNGKey(0) if key is None else key
+        return cls(task.observation_size, task.action_size, units, init_log_std, key=key, dtype=dtype)
+
+    def reinit(self, key: PRNGKeyArray) -> "Actor":
+        """The same architecture (sizes, ``init_log_std`` and dtype) with fresh initial weights drawn from ``key``."""
+        units = tuple(layer.out_features for layer in self.mu.hidden)
+        return Actor(self.mu.hidden[0].in_features if units else self.mu.out.in_features, self.log_std.shape[0],
+                     units, self.init_log_std, key=key, dtype=self.mu.out.weight.dtype)
 
     def sample(self, obs: Float[ArrayLike, " obs_size"], key: PRNGKeyArray) -> Float[Array, " action_size"]:
         """A reparameterised stochastic action in (-1, 1) (differentiable in the parameters and ``obs``).

@@ -47,6 +47,19 @@ class GRUPolicy(eqx.Module):
         self.head = eqx.nn.Linear(width, action_size, dtype=dtype, key=k[4])
         self.hidden_size = obs_size
 
+    @classmethod
+    def for_task(cls, task, width: int = 16, *, key: PRNGKeyArray | None = None,
+                 dtype: DTypeLike | None = None) -> "GRUPolicy":
+        """A policy sized for ``task`` (its ``observation_size`` and ``action_size``); ``key`` defaults to
+        ``PRNGKey(0)`` (the training algorithms draw their own initial weights with :meth:`reinit`)."""
+        key = jax.random.PRNGKey(0) if key is None else key
+        return cls(task.observation_size, task.action_size, width, key=key, dtype=dtype)
+
+    def reinit(self, key: PRNGKeyArray) -> "GRUPolicy":
+        """The same architecture (sizes and dtype) with fresh initial weights drawn from ``key``."""
+        return GRUPolicy(self.hidden_size, self.head.out_features, self.embed.out_features, key=key,
+                         dtype=self.fc1.weight.dtype)
+
     def initial_state(self) -> Float[Array, " obs_size"]:
         """The zero hidden state, shape ``(hidden_size,) = (obs_size,)``, in the weights' dtype."""
         return jnp.zeros(self.hidden_size, self.fc1.weight.dtype)

@@ -76,3 +76,45 @@ class Normalizer(eqx.Module):
         """
         z = (obs - self.mean) / jnp.sqrt(self.var + self.eps)
         return jnp.clip(z, -self.clip, self.clip)
+
+
+class BraxNormalizer(eqx.Module):
+    """Brax v1's running observation normaliser (``brax/training/normalization.py``), the one the CE-APG authors used.
+
+    It keeps the observation count ``steps``, the running ``mean`` and the summed squared deviations ``m2``, starting
+    from Brax's prior ``steps = 0, mean = 0, m2 = 1``; it applies ``clip((obs - mean) / sqrt(var), -5, 5)`` with
+    ``var = clip(m2 / (steps + 1), 1e-6, 1e6)``. Unlike :class:`Normalizer` the prior never washes out: after ``N``
+    observations of a still system ``var`` is about ``1 / (N + 1)``, so at the start of training any motion is
+    clipped to +-5. Same interface as :class:`Normalizer` (:meth:`create`, :meth:`update`, call).
+
+    Args:
+        steps: number of observations merged, scalar (a float, as Brax keeps it).
+        mean: running mean, shape ``(size,)``, in the observation's units.
+        m2: prior plus summed squared deviations from the mean, shape ``(size,)``, in those units squared.
+    """
+
+    steps: Float[Array, ""]
+    mean: Float[Array, " size"]
+    m2: Float[Array, " size"]
+
+    @classmethod
+    def create(cls, size: int, *, dtype: DTypeLike | None = None) -> BraxNormalizer:
+        """Brax's prior: ``steps = 0``, ``mean = 0``, ``m2 = 1``."""
+        if size < 1:
+            raise ValueError(f"BraxNormalizer size must be >= 1, got {size}")
+        dtype = dtype or jnp.zeros(()).dtype
+        return cls(jnp.zeros((), dtype), jnp.zeros(size, dtype), jnp.ones(size, dtype))
+
+    def update(self, obs: Float[ArrayLike, "*batch size"]) -> BraxNormalizer:
+        """Merge a batch of observations (Brax's Welford update; no gradient flows)."""
+        obs = jax.lax.stop_gradient(jnp.asarray(obs)).reshape(-1, self.mean.shape[0]).astype(self.mean.dtype)
+        total = self.steps + obs.shape[0]
+        to_old = obs - self.mean
+        mean = self.mean + jnp.sum(to_old / total, axis=0)
+        m2 = self.m2 + jnp.sum((obs - mean) * to_old, axis=0)
+        return BraxNormalizer(total, mean, m2)
+
+    def __call__(self, obs: Float[ArrayLike, "*batch size"]) -> Float[Array, "*batch size"]:
+        """``clip((obs - mean) / sqrt(clip(m2 / (steps + 1), 1e-6, 1e6)), -5, 5)``, dimensionless."""
+        var = jnp.clip(self.m2 / (self.steps + 1.0), 1e-6, 1e6)
+        return jnp.clip((obs - self.mean) / jnp.sqrt(var), -5.0, 5.0)
