@@ -1,6 +1,6 @@
 """A griffe extension for the API reference: the docstrings' reStructuredText habits, rendered as Markdown.
 
-The docstrings write Sphinx roles (``:class:`Link```, ``:func:`~lagrange.tasks.make_task```), simple tables bordered
+The docstrings write Sphinx roles (``:class:`Link```, ``:func:`~lagrange.tasks.balanced```), simple tables bordered
 by ``====`` and ``::`` before a literal block. mkdocstrings renders Markdown, so here, before rendering,
 
 - a role becomes an optional cross-reference (a link where the target is in the reference, plain code where not),

@@ -14,12 +14,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from lagrange.kinematics import positions
-from lagrange.tasks import Task, TaskState, balanced
+from lagrange.tasks import AbstractTask, TaskState, balanced
 
 __all__ = ["episode_figure", "episode_animation"]
 
 
-def episode_figure(task: Task, q, actions, path: str, *, qd=None, title: str | None = None,
+def episode_figure(task: AbstractTask, q, actions, path: str, *, qd=None, title: str | None = None,
                    marks: Sequence[tuple[float, str]] = ()) -> None:
     """Draw an episode to ``path`` (PNG): the task's angles (the cart's position on its own axis), the angular
     velocities when ``qd`` is given, and the actuator's force or torque.
@@ -61,13 +61,13 @@ def episode_figure(task: Task, q, actions, path: str, *, qd=None, title: str | N
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=7, loc="upper right")
     if title is None:
-        title = f"{task.kind}: balanced {bool(balanced(task, q))}"
+        title = f"{task.name}: balanced {bool(balanced(task, q))}"
     axes[0].set_title(title)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 
 
-def episode_animation(task: Task, q, path: str, *, every: int | None = None) -> None:
+def episode_animation(task: AbstractTask, q, path: str, *, every: int | None = None) -> None:
     """Animate the chain through the coordinates ``q`` (T + 1, n) to ``path`` (GIF, one frame every ``every``
     control steps; default about 20 frames per simulated second)."""
     from matplotlib import animation

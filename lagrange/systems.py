@@ -8,7 +8,7 @@ configs describe them (acrobot: capsules 1 m long with the hinges 0.45 m either 
 0.698 m long hinged 0.3 m from the centre). Those configs give masses but no inertias, and Brax v1 then sets
 every body's inertia to (1, 1, 1) kg m^2 (``validate_config``), about five times a 1 m, 2.5 kg rod's
 (0.21 kg m^2) and 2.4 times a 1 m, 5.02 kg pole's: heavy, slow links no physical rod of that mass and length
-has. ``lagrange.tasks.make_task(name, bodies="brax_v1")`` builds a task on them.
+has. ``lagrange.tasks.Acrobot.brax_v1()`` (likewise ``Cartpole``, ``DoubleCartpole``) builds a task on them.
 
 =================  =====================================  ==========================
 system             coordinates ``q``                       actuation
@@ -140,4 +140,4 @@ BRAX_V1 = {
 """The CE-APG authors' bodies, from their Brax v1 configs: the keywords of :func:`acrobot`, :func:`cartpole` and
 :func:`double_cartpole` that build them. Hinge offsets from each capsule's centre give ``com`` and the hinge-to-hinge
 ``length``; no inertia is given there, so Brax v1's default of 1 kg m^2 applies. The cartpole's pole has no second
-hinge; its length (0.6 m) only places the drawn tip. ``lagrange.tasks.make_task(name, bodies="brax_v1")`` uses them."""
+hinge; its length (0.6 m) only places the drawn tip. ``lagrange.tasks.Acrobot.brax_v1()`` and its siblings use them."""

@@ -9,9 +9,9 @@
       rel(a, b) = max|a - b| / max(1, max|b|)
 
   (the largest error relative to the reference's largest entry, absolute below 1).
-- ``param_count``, ``pendulum_swingup`` (a small task a trainer learns in seconds), ``tiny_ce_apg_config`` and
-  ``ROOT`` (the repository, the working directory of the tests that start a fresh interpreter): ``tests/policies/``
-  and ``tests/optim/``.
+- ``param_count``, ``pendulum_swingup`` (a small task a trainer learns in seconds), ``tiny_acrobot``, ``tiny_gru``,
+  ``tiny_mlp``, ``tiny_ce_apg_config``, ``states_equal`` and ``ROOT`` (the repository, the working directory of the
+  tests that start a fresh interpreter): ``tests/policies/`` and ``tests/optim/``.
 """
 
 from __future__ import annotations
@@ -28,7 +28,6 @@ import pytest
 import lagrange as lg
 from lagrange.chain import Chain, Link
 from lagrange.interop.mjcf import to_mjcf
-from lagrange.tasks import chain_swingup
 
 
 REL = 1e-12  # M, bias and gravity forces in float64: see tests/lagrange/test_dynamics.py's docstring
@@ -202,16 +201,47 @@ def param_count(tree):
 ROOT = pathlib.Path(__file__).resolve().parent.parent  # the repository: the cwd of subprocess tests
 
 
-def tiny_ce_apg_config():
-    """A CE-APG config small enough for a test (4 candidates, 3 iterations of 2 APG steps on 20-step acrobot
-    episodes), shared by the checkpoint, host-loop and CE-APG tests."""
-    from optim import ce_apg
+def tiny_ce_apg_config(**overrides):
+    """A CE-APG config small enough for a test (4 candidates, 3 iterations of 2 APG steps of one episode), shared by
+    the checkpoint, host-loop, CLI and CE-APG tests."""
+    from optim import CEAPGConfig
 
-    return ce_apg.CEAPGConfig(task="acrobot", num_candidates=4, num_elites=2, iterations=3, apg_steps=2, episodes=1,
-                              horizon=20, width=4, fitness_window=1, lr_start=1e-2, lr_end=1e-3)
+    return CEAPGConfig(**{**dict(num_candidates=4, num_elites=2, iterations=3, apg_steps=2, episodes=1,
+                                 fitness_window=1, lr_start=1e-2, lr_end=1e-3), **overrides})
 
 
-def pendulum_swingup(horizon=100, noise=0.01):
+def tiny_acrobot(horizon=20, **options):
+    """The paper's acrobot (rods) cut to ``horizon`` control steps."""
+    from lagrange.tasks import Acrobot
+
+    return Acrobot.rods(horizon=horizon, **options)
+
+
+def tiny_gru(task, width=4):
+    """A GRU policy of ``width`` sized for ``task`` (the trainers draw its weights)."""
+    from policies import GRUPolicy
+
+    return GRUPolicy.for_task(task, width=width)
+
+
+def tiny_mlp(task, width=4):
+    """A one-hidden-layer MLP policy of ``width`` sized for ``task`` (it compiles faster than the GRU)."""
+    from policies import MLPPolicy
+
+    return MLPPolicy.for_task(task, width=width, depth=1)
+
+
+def states_equal(a, b) -> bool:
+    """Two pytrees with the same structure and bit-identical leaves."""
+    la, lb = jax.tree_util.tree_leaves(a), jax.tree_util.tree_leaves(b)
+    return (jax.tree_util.tree_structure(a) == jax.tree_util.tree_structure(b)
+            and all(np.array_equal(np.asarray(x), np.asarray(y)) for x, y in zip(la, lb)))
+
+
+def pendulum_swingup(horizon=100, noise=0.01, **options):
     """A small task: pendulum swing-up (1 kg, 1 m, torque 5 a N m; gravity's largest torque is 4.9 N m)
-    with the acrobot's reward 10 - th^2 - 0.01 dth^2 per step, dt 0.05 s."""
-    return chain_swingup(lg.systems.pendulum(gear=5.0), dt=0.05, horizon=horizon, noise=noise)
+    with the acrobot's reward 10 - th^2 - 0.01 dth^2 per step, dt 0.05 s (``options``: other task fields, e.g.
+    ``upright=1.0`` for a balance task)."""
+    from lagrange.tasks import ChainSwingup
+
+    return ChainSwingup(lg.systems.pendulum(gear=5.0), dt=0.05, horizon=horizon, noise=noise, **options)

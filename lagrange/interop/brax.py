@@ -7,9 +7,9 @@ which JAX 0.10 removed from its namespace, so run them inside :func:`brax_traini
     from brax.training.agents.ppo import train as ppo
 
     from lagrange.interop.brax import BraxEnv, brax_training_compat
-    from lagrange.tasks import make_task
+    from lagrange.tasks import Cartpole
 
-    env = BraxEnv(make_task("cartpole"))
+    env = BraxEnv(Cartpole.rods())
     with brax_training_compat():
         make_policy, params, metrics = ppo.train(environment=env, num_timesteps=100_000, episode_length=500)
 
@@ -27,7 +27,7 @@ import jax
 import jax.numpy as jnp
 from brax.envs.base import Env, State
 
-from lagrange.tasks import TaskState
+from lagrange.tasks import AbstractTask, TaskState
 
 __all__ = ["BraxEnv", "PipelineState", "brax_training_compat"]
 
@@ -53,12 +53,12 @@ class BraxEnv(Env):
 
     Observations, rewards and ``done`` are in the dtype of the chain's parameters.
 
-    Usage: ``env = BraxEnv(make_task("acrobot"))``, then ``env.reset(key)`` and ``env.step(state, action)``
+    Usage: ``env = BraxEnv(Acrobot.rods())``, then ``env.reset(key)`` and ``env.step(state, action)``
     (jit and vmap them as any Brax environment), or pass ``environment=env`` to a Brax trainer inside
     :func:`brax_training_compat`.
     """
 
-    def __init__(self, task, *, terminate_at_horizon: bool = True):
+    def __init__(self, task: AbstractTask, *, terminate_at_horizon: bool = True):
         if not isinstance(terminate_at_horizon, bool):
             raise TypeError(f"BraxEnv terminate_at_horizon must be True or False, got {terminate_at_horizon!r}")
         self.task = task

@@ -3,9 +3,9 @@
 :class:`GymEnv` wraps a task in ``gymnasium.Env``, for code written against Gymnasium's API::
 
     from lagrange.interop.gymnasium import GymEnv
-    from lagrange.tasks import make_task
+    from lagrange.tasks import Acrobot
 
-    env = GymEnv(make_task("acrobot"), render_mode="rgb_array")
+    env = GymEnv(Acrobot.rods(), render_mode="rgb_array")
     obs, info = env.reset(seed=0)
     obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
     frame = env.render()  # (240, 320, 3) uint8
@@ -23,7 +23,7 @@ import numpy as np
 from gymnasium import spaces
 
 from lagrange.kinematics import positions
-from lagrange.tasks import TaskState
+from lagrange.tasks import AbstractTask, TaskState
 
 __all__ = ["GymEnv"]
 
@@ -46,7 +46,7 @@ class GymEnv(gym.Env):
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
 
-    def __init__(self, task, *, render_mode: str | None = None, frame_size: tuple[int, int] = (320, 240)):
+    def __init__(self, task: AbstractTask, *, render_mode: str | None = None, frame_size: tuple[int, int] = (320, 240)):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"GymEnv render_mode must be None or one of {self.metadata['render_modes']}, "
                              f"got {render_mode!r}")

@@ -22,7 +22,7 @@ def weights(task, r):
 
 @functools.cache
 def model(name):
-    task = tasks.make_task(name)
+    task = tasks.PAPER_TASKS[name].rods()
     return task, *control.linearise(task)
 
 
@@ -68,7 +68,7 @@ def test_linearise_is_rk4_of_the_closed_form_linearisation(name, closed_form):
 def test_linearise_away_from_equilibrium_matches_central_differences():
     """At a moving state and a nonzero action: central differences of ``task.step``, h = 1e-6. Truncation
     h^2 |f'''| / 6 ~ 1e-12; round-off eps |x'| / h ~ 2e-16 * 5 / 1e-6 ~ 1e-9 per evaluation: tolerance 1e-8."""
-    task = tasks.double_cartpole()
+    task = tasks.DoubleCartpole.rods()
     x0 = np.array([0.3, 2.5, -0.4, 0.7, -1.2, 2.0])
     u0 = np.array([0.3])
     A, B = control.linearise(task, x0, u0)
@@ -154,7 +154,7 @@ def test_saturated_lqr_is_the_clipped_gain_about_upright_and_brings_the_cartpole
 def test_basin_agrees_with_rollouts_by_hand():
     """The judged leans of ``basin`` against a Python loop over ``task.step`` with the same controller: a start
     recovers when its final |dx| < tol; the answer is the last lean of the leading run of recovered starts."""
-    task = tasks.acrobot()
+    task = tasks.Acrobot.rods()
     A, B = control.linearise(task)
     controller = control.saturated_lqr(task, control.lqr_gain(A, B, *weights(task, 1e2)))
     leans, steps = (0.005, 0.02, 0.03, 0.1), 400
@@ -188,7 +188,7 @@ def test_basin_reproduces_the_research_result_on_the_cartpole():
     recorded = {1.0: ([-0.7736921414235773, 5.942986401420172, -0.8388774111368164, 1.4457077270921903], 0.3, 11),
                 1e2: ([-0.08192914447807052, 3.5470035963499282, -0.18420568909377308, 0.8311339008994264], 1.0, 14)}
     with jax.enable_x64(False):
-        task = tasks.cartpole()
+        task = tasks.Cartpole.rods()
         assert control.upright_state(task).dtype == np.float32
         A, B = control.linearise(task)
         for r, (gain, largest, recovered) in recorded.items():

@@ -10,6 +10,7 @@ the adapters changes no other module (``jax`` above all); both are checked in a 
 
 import ast
 import pathlib
+import re
 import subprocess
 import sys
 import textwrap
@@ -112,6 +113,52 @@ def _imported_names(package: str) -> dict[str, set[str]]:
                 names.add(node.module)
         out[_module_name(path)] = names
     return out
+
+
+ALGORITHM = re.compile(r"shac|ce_?apg", re.IGNORECASE)
+"""Names of learning algorithms (SHAC, CE-APG) as they would appear in an identifier."""
+
+
+def code_names(source: str) -> set[str]:
+    """Every name the code itself spells: variables, attributes, definitions, arguments, keywords and imported
+    modules and aliases (not strings, so not docstrings)."""
+    names = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Name):
+            names.add(node.id)
+        elif isinstance(node, ast.Attribute):
+            names.add(node.attr)
+        elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names.add(node.name)
+        elif isinstance(node, ast.arg):
+            names.add(node.arg)
+        elif isinstance(node, ast.keyword) and node.arg:
+            names.add(node.arg)
+        elif isinstance(node, ast.alias):
+            names |= {node.name, *([node.asname] if node.asname else [])}
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            names.add(node.module)
+    return names
+
+
+def test_no_module_of_lagrange_names_an_algorithm():
+    """The physics and its tasks know nothing of how they are learned: no module, class, function, variable or
+    import in ``lagrange`` names SHAC or CE-APG (a docstring may cite "the SHAC authors' environment")."""
+    flagged = code_names(textwrap.dedent('''
+        from optim.ce_apg import CEAPGConfig
+        import optim.shac as s
+        def f(shac_env):
+            """the SHAC authors' cartpole, trained by CE-APG"""
+            return s.x(horizon=CEAPGConfig)
+    '''))
+    assert {n for n in flagged if ALGORITHM.search(n)} == {"optim.ce_apg", "CEAPGConfig", "optim.shac",
+                                                            "shac_env"}  # positive control
+    bad = {}
+    for path in sorted((ROOT / "lagrange").rglob("*.py")):
+        names = {n for n in code_names(path.read_text()) | {_module_name(path)} if ALGORITHM.search(n)}
+        if names:
+            bad[str(path.relative_to(ROOT))] = sorted(names)
+    assert not bad, f"modules of lagrange name an algorithm: {bad}"
 
 
 def test_chain_imports_no_other_module():

@@ -22,7 +22,7 @@ def _episode(task, steps=20):
 
 
 def test_figure_with_and_without_velocities(tmp_path):
-    task = tasks.double_cartpole()
+    task = tasks.DoubleCartpole.rods()
     q, qd, a = _episode(task)
     episode_figure(task, q, a, tmp_path / "full.png", qd=qd, marks=[(0.1, "a mark")])
     episode_figure(task, q, a, tmp_path / "short.png", title="no velocities")
@@ -30,8 +30,25 @@ def test_figure_with_and_without_velocities(tmp_path):
     assert full.size[0] == short.size[0] and full.size[1] > short.size[1]  # three panels against two
 
 
+def test_default_title_names_the_task_and_whether_it_balanced(tmp_path, monkeypatch):
+    """The default title is the task's display name and ``balanced`` of the episode: False on 20 steps from hanging,
+    True on an episode held upright."""
+    from matplotlib.axes import Axes
+
+    titles = []
+    monkeypatch.setattr(Axes, "set_title", lambda self, label, *args, **kwargs: titles.append(label))
+    task = tasks.Acrobot.rods()
+    q, qd, a = _episode(task)
+    episode_figure(task, q, a, tmp_path / "hanging.png")
+    upright = jnp.zeros_like(q).at[:, 0].set(jnp.pi)
+    episode_figure(task, upright, a, tmp_path / "upright.png")
+    cart = tasks.DiffRLCartpole.diffrl()
+    episode_figure(cart, *_episode(cart)[::2], tmp_path / "cart.png")
+    assert titles == ["acrobot: balanced False", "acrobot: balanced True", "diffrl_cartpole: balanced False"]
+
+
 def test_animation_has_one_frame_per_every_steps(tmp_path):
-    task = tasks.acrobot()
+    task = tasks.Acrobot.rods()
     q, _, _ = _episode(task)
     episode_animation(task, q, tmp_path / "a.gif", every=5)
     assert Image.open(tmp_path / "a.gif").n_frames == 5  # steps 0, 5, 10, 15, 20

@@ -1,20 +1,27 @@
-"""The swing-up tasks: resets, angle conventions, observations and rewards by hand, the integrator
-against Dopri8, energy conservation, and the balanced criterion on synthetic trajectories."""
+"""The swing-up tasks (lagrange/tasks/swingup.py, base.py, balance.py): resets, angle conventions, observations and
+rewards by hand, the integrator against Dopri8, energy conservation, the balanced criterion on synthetic
+trajectories, and the class structure (abstract bases, final tasks, body-set constructors)."""
 
 import dataclasses
+import inspect
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import lagrange as lg
-from lagrange import tasks
+from lagrange import systems, tasks
+from lagrange.chain import Chain, Link
+from lagrange.tasks import Acrobot, Cartpole, ChainSwingup, DiffRLCartpole, DoubleCartpole
+
+FINAL = (Acrobot, Cartpole, DoubleCartpole, ChainSwingup, DiffRLCartpole)
 
 
 @pytest.mark.parametrize("name, n, obs", [("acrobot", 2, 4), ("cartpole", 2, 4), ("double_cartpole", 3, 8)])
 def test_reset_hangs_with_bounded_noise(name, n, obs):
-    task = tasks.make_task(name)
+    task = tasks.PAPER_TASKS[name].rods()
     s = jax.vmap(task.reset)(jax.random.split(jax.random.PRNGKey(0), 256))
     assert s.q.shape == (256, n) and s.qd.shape == (256, n)
     assert float(jnp.max(jnp.abs(s.q))) <= 0.01 and float(jnp.max(jnp.abs(s.qd))) <= 0.01
@@ -29,8 +36,7 @@ def test_reset_hangs_with_bounded_noise(name, n, obs):
 def test_upright_fraction_of_starts():
     """``upright=p`` starts balanced with probability p; p = 0 draws exactly the paper's hanging starts."""
     keys = jax.random.split(jax.random.PRNGKey(1), 4000)
-    for name in ("acrobot", "double_cartpole"):
-        task = tasks.make_task(name)
+    for task in (Acrobot.rods(), DoubleCartpole.rods()):
         i = task.first_pole
         paper = jax.vmap(task.reset)(keys)
         mixed = jax.vmap(dataclasses.replace(task, upright=0.25).reset)(keys)
@@ -42,14 +48,16 @@ def test_upright_fraction_of_starts():
         np.testing.assert_allclose(mixed.q[:, i] - paper.q[:, i], np.pi * up, atol=1e-6)
         np.testing.assert_allclose(always.q[:, i] - paper.q[:, i], np.pi, atol=1e-6)
         assert bool(jnp.all(jnp.abs(jax.vmap(task.angles)(always)[:, 0]) <= 0.01 + 1e-6))
+    with pytest.raises(ValueError, match=r"Acrobot.upright must be a probability in \[0, 1\], got 1.5"):
+        dataclasses.replace(Acrobot.rods(), upright=1.5)
     with pytest.raises(ValueError, match="upright"):
-        dataclasses.replace(tasks.acrobot(), upright=1.5)
+        Acrobot.rods(upright=-0.1)
 
 
 def test_start_states():
     """``starts=X`` draws each reset's (q, qd) uniformly from the rows of X, plus the task's usual noise; the
     ``upright`` coin still comes first; a wrong shape or a non-finite row is refused naming the field."""
-    task = tasks.double_cartpole()
+    task = DoubleCartpole.rods()
     X = jnp.asarray([[0.5, 1.0, -1.0, 2.0, 0.0, 3.0], [-0.5, 2.0, 0.5, 0.0, -4.0, 1.0], [0.0, 3.0, 0.0, 0.0, 0.0, 0.0]])
     keys = jax.random.split(jax.random.PRNGKey(2), 3000)
     paper = jax.vmap(task.reset)(keys)
@@ -63,15 +71,17 @@ def test_start_states():
         jnp.abs(mixed.qd).max(-1) <= 0.01)
     assert 0.46 < up.mean() < 0.54
     for bad in (X[:, :4], X[0], jnp.zeros((0, 6))):
-        with pytest.raises(ValueError, match=r"Task.starts must be an array of shape \(K >= 1, 2 n = 6\)"):
+        with pytest.raises(ValueError, match=r"DoubleCartpole.starts must be an array of shape \(K >= 1, 2 n = 6\)"):
             dataclasses.replace(task, starts=bad)
-    with pytest.raises(ValueError, match="Task.starts must be finite"):
+    with pytest.raises(ValueError, match="DoubleCartpole.starts must be finite"):
         dataclasses.replace(task, starts=X.at[1, 2].set(jnp.nan))
 
 
 def test_paper_parameters():
-    a, c, d = tasks.acrobot(), tasks.cartpole(), tasks.double_cartpole()
+    a, c, d = Acrobot.rods(), Cartpole.rods(), DoubleCartpole.rods()
     assert (a.dt, c.dt, d.dt) == (0.01, 0.04, 0.01)
+    assert (a.horizon, a.substeps, a.noise, a.upright, a.starts) == (500, 1, 0.01, 0.0, None)
+    assert isinstance(a.solver, lg.RK4) and (a.trig, c.trig, d.trig) == (False, False, True)
     np.testing.assert_allclose(a.chain.mass, [2.5, 2.5]) and np.testing.assert_allclose(a.chain.length, [1, 1])
     np.testing.assert_allclose(a.chain.gear, [25.0])
     assert a.chain.actuated == (1,)  # the elbow; the shoulder is passive
@@ -79,34 +89,39 @@ def test_paper_parameters():
     np.testing.assert_allclose(d.chain.mass, [10.47, 5.02, 5.02]) and np.testing.assert_allclose(d.chain.gear, [1000.0])
     # the first pole's joint follows the cart's
     assert (a.first_pole, c.first_pole, d.first_pole) == (0, 1, 1) and (a.n_links, c.n_links, d.n_links) == (2, 1, 2)
+    assert (a.cart, c.cart, d.cart) == (False, True, True) and (a.action_size, c.action_size, d.action_size) == (1,) * 3
+    # a task on a chain of one's own: the class's dt, the paper's other fields, no body-set label
+    own = Acrobot(systems.acrobot(masses=(1.0, 3.0)))
+    assert (own.dt, own.horizon, own.bodies) == (0.01, 500, None)
+    np.testing.assert_allclose(own.chain.mass, [1.0, 3.0])
 
 
 def test_brax_v1_bodies():
-    """``bodies="brax_v1"`` changes the chain (the authors' hinge spacings, inertia 1 kg m^2) and nothing else of the
-    task; the default is this library's rods, unchanged."""
-    for name in tasks.TASKS:
-        rods, brax = tasks.make_task(name), tasks.make_task(name, "brax_v1")
-        for field in ("mass", "length", "com", "inertia", "gear"):
-            np.testing.assert_array_equal(getattr(tasks.make_task(name, "rods").chain, field),
-                                          getattr(rods.chain, field))
-        assert (brax.kind, brax.dt, brax.horizon, brax.noise, brax.substeps) == (rods.kind, rods.dt, rods.horizon,
+    """``brax_v1()`` changes the chain (the authors' hinge spacings, inertia 1 kg m^2, ``systems.BRAX_V1``) and
+    nothing else of the task; ``rods()`` is this library's rods, the catalogue's default chains."""
+    for name, cls in tasks.PAPER_TASKS.items():
+        rods, brax = cls.rods(), cls.brax_v1()
+        want_rods, want_brax = getattr(systems, name)(), getattr(systems, name)(**systems.BRAX_V1[name])
+        for field in ("mass", "length", "com", "inertia", "gear", "damping"):
+            np.testing.assert_array_equal(getattr(rods.chain, field), getattr(want_rods, field))
+            np.testing.assert_array_equal(getattr(brax.chain, field), getattr(want_brax, field))
+        assert rods.chain.joints == brax.chain.joints == want_brax.joints == want_rods.joints
+        assert (brax.name, brax.dt, brax.horizon, brax.noise, brax.substeps) == (rods.name, rods.dt, rods.horizon,
                                                                                   rods.noise, rods.substeps)
         np.testing.assert_allclose(brax.chain.gear, rods.chain.gear)
         poles = slice(brax.first_pole, None)
         np.testing.assert_allclose(brax.chain.inertia[poles], 1.0)
         assert np.all(np.asarray(rods.chain.inertia[poles]) < 0.5)
-    a = tasks.make_task("acrobot", "brax_v1").chain
+    a = Acrobot.brax_v1().chain
     np.testing.assert_allclose(a.mass, [2.5, 2.5]) and np.testing.assert_allclose(a.length, [0.9, 0.9])
-    np.testing.assert_allclose(a.com, [0.45, 0.45])
-    d = tasks.make_task("double_cartpole", "brax_v1").chain
+    np.testing.assert_allclose(a.com, [0.45, 0.45]) and np.testing.assert_allclose(a.inertia, [1.0, 1.0])
+    d = DoubleCartpole.brax_v1().chain
     np.testing.assert_allclose(d.com[1:], [0.3, 0.3]) and np.testing.assert_allclose(d.length[1:], [0.6, 0.6])
-    with pytest.raises(ValueError, match=r"bodies must be one of \['rods', 'brax_v1'\], got 'brax'"):
-        tasks.make_task("acrobot", "brax")
     # the task records its bodies (a float64 rebuild, research.swingup_lqr.rerun_float64, reads them back)
-    assert (tasks.make_task("acrobot").bodies, tasks.make_task("acrobot", "brax_v1").bodies) == ("rods", "brax_v1")
-    assert tasks.acrobot().bodies is None and tasks.chain_swingup(tasks.acrobot().chain).bodies is None
-    with pytest.raises(ValueError, match=r"Task.bodies must be None or one of \['rods', 'brax_v1'\], got 'brax'"):
-        dataclasses.replace(tasks.make_task("acrobot"), bodies="brax")
+    assert (Acrobot.rods().bodies, Acrobot.brax_v1().bodies) == ("rods", "brax_v1")
+    assert Acrobot(systems.acrobot()).bodies is None and ChainSwingup(Acrobot.rods().chain).bodies is None
+    with pytest.raises(ValueError, match=r"Acrobot.bodies must be None or one of \['rods', 'brax_v1'\], got 'brax'"):
+        dataclasses.replace(Acrobot.rods(), bodies="brax")
 
 
 def test_wrap_range():
@@ -122,30 +137,43 @@ def _state(q, qd):
 
 
 def test_observations_and_rewards_by_hand():
-    a = tasks.acrobot()
+    a = Acrobot.rods()
     s = _state([np.pi + 0.3, -0.2], [1.0, -2.0])  # first link 0.3 past upright, elbow bent -0.2
     np.testing.assert_allclose(a.observe(s), [0.3, -0.2, 1.0, -2.0], atol=1e-12)
     assert float(a.reward(None, None, s)) == pytest.approx(10 - 0.09 - 0.04 - 0.01 * 5)
     assert float(a.reward(None, None, _state([np.pi, 0], [0, 0]))) == 10.0
     assert float(a.reward(None, None, _state([0, 0], [0, 0]))) == pytest.approx(10 - np.pi**2)
 
-    c = tasks.cartpole()
+    c = Cartpole.rods()
     s = _state([0.5, np.pi - 0.4], [0.1, 0.7])
     np.testing.assert_allclose(c.observe(s), [0.5, -0.4, 0.1, 0.7], atol=1e-12)
     assert float(c.reward(None, None, s)) == pytest.approx(-0.16)
+    ct = Cartpole.rods(trig=True)
+    np.testing.assert_allclose(ct.observe(s), [0.5, np.sin(-0.4), np.cos(-0.4), 0.1, 0.7], atol=1e-12)
+    assert (c.observation_size, ct.observation_size) == (4, 5)
 
-    d = tasks.double_cartpole()
+    d = DoubleCartpole.rods()
     s = _state([0.5, np.pi + 0.1, 0.2], [0.3, 1.0, 2.0])
     th = np.array([0.1, 0.2])
     np.testing.assert_allclose(d.observe(s), [0.5, *np.sin(th), *np.cos(th), 0.3, 1.0, 2.0], atol=1e-12)
     assert float(d.reward(None, None, s)) == pytest.approx(10 - (0.01 + 0.04 + 0.25) - 0.01 * 5)
+
+    # a three-link arm: the acrobot's observation and reward over every link
+    arm = ChainSwingup(systems.n_link_pendulum(3, gear=2.0))
+    s = _state([np.pi - 0.1, 0.3, -0.5], [0.5, -1.0, 2.0])
+    np.testing.assert_allclose(arm.observe(s), [-0.1, 0.3, -0.5, 0.5, -1.0, 2.0], atol=1e-12)
+    assert float(arm.reward(None, None, s)) == pytest.approx(10 - (0.01 + 0.09 + 0.25) - 0.01 * (0.25 + 1 + 4))
+    th = np.array([-0.1, 0.3, -0.5])
+    np.testing.assert_allclose(dataclasses.replace(arm, trig=True).observe(s), [*np.sin(th), *np.cos(th), 0.5, -1.0,
+                                                                                  2.0], atol=1e-12)
+    assert (arm.observation_size, dataclasses.replace(arm, trig=True).observation_size, arm.action_size) == (6, 9, 3)
 
 
 def test_step_matches_dopri8_and_clips_actions():
     """One RK4 step per interval (the documented choice) stays within 1e-3 rad of Dopri8 at
     rtol = atol = 1e-12 over a whole 500-step acrobot episode under an energetic pumping action
     (measured 1.1e-4; the reset noise it must stay below is 1e-2)."""
-    task = tasks.acrobot()
+    task = Acrobot.rods()
     s0 = _state([0.005, -0.003], [0.0, 0.0])
     t = jnp.arange(500) * task.dt
     a = 0.6 * jnp.sin(2 * jnp.pi * 1.2 * t)[:, None]
@@ -162,9 +190,7 @@ def test_energy_drift_is_at_least_fourth_order():
     small (measured 1.5e-4 J; the swing's potential-energy range is about 50 J) and shrinks at
     least as fast as a fourth-order method's, 2^4 = 16 per halving (accept > 12; measured about
     30, 29, 27 for substeps 1->2->4->8)."""
-    import dataclasses
-
-    task = tasks.acrobot()
+    task = Acrobot.rods()
     s = _state([2.0, -1.0], [0.0, 0.0])
     e0 = sum(lg.energy(task.chain, s.q, s.qd))
 
@@ -178,7 +204,7 @@ def test_energy_drift_is_at_least_fourth_order():
 
 
 def test_balanced_on_synthetic_trajectories():
-    a = tasks.acrobot()
+    a = Acrobot.rods()
     T = 501
     q = np.zeros((T, 2))
     q[:, 0] = np.pi  # upright, straight
@@ -193,7 +219,7 @@ def test_balanced_on_synthetic_trajectories():
     compensated[:, 0] = np.pi + 0.15
     compensated[:, 1] = -0.1  # link 1 at 0.15, link 2 at 0.05 absolute: both within 0.2
     assert bool(tasks.balanced(a, compensated))
-    c = tasks.cartpole()
+    c = Cartpole.rods()
     qc = np.zeros((T, 2))
     qc[:, 0] = 3.0  # the cart position does not matter
     qc[:, 1] = -np.pi + 0.1
@@ -205,7 +231,7 @@ def test_balanced_on_synthetic_trajectories():
 def test_leaves_upright_finds_the_first_step_past_the_tolerance():
     """On built trajectories: the elbow bent 0.3 rad from step 12 (the second link 0.3 rad off), the first link
     0.2 rad off from step 5; the tolerance is on each link's absolute orientation, as ``balanced`` measures it."""
-    task = tasks.acrobot()
+    task = Acrobot.rods()
     q = np.tile([np.pi, 0.0], (2, 30, 1))
     q[0, 12:, 1] = 0.3
     q[1, 5:, 0] = np.pi - 0.2
@@ -223,7 +249,7 @@ def test_leaves_upright_finds_the_first_step_past_the_tolerance():
     cart[1, 2, 7:, 1] = np.nan
     want = np.full((3, 4), -1)
     want[1, 2] = 7
-    np.testing.assert_array_equal(tasks.leaves_upright(tasks.cartpole(), cart, tolerance=0.1), want)
+    np.testing.assert_array_equal(tasks.leaves_upright(Cartpole.rods(), cart, tolerance=0.1), want)
     for kwargs, field in [({"tolerance": 0.0}, "tolerance"), ({"tolerance": -1.0}, "tolerance"),
                           ({"from_step": -1}, "from_step"), ({"from_step": 30}, "from_step"),
                           ({"from_step": 1.5}, "from_step")]:
@@ -233,28 +259,113 @@ def test_leaves_upright_finds_the_first_step_past_the_tolerance():
         tasks.leaves_upright(task, q[..., :1], tolerance=0.25)
 
 
-def test_unknown_task_is_named():
-    with pytest.raises(ValueError, match="task must be one of"):
-        tasks.make_task("hopper")
+def test_paper_tasks_and_body_sets():
+    """``PAPER_TASKS`` names the paper's three classes by their display names; each has one constructor per body
+    set, which labels the task with it; the constructors take the task's fields and apply them as given."""
+    assert tasks.PAPER_TASKS == {"acrobot": Acrobot, "cartpole": Cartpole, "double_cartpole": DoubleCartpole}
+    assert tasks.BODY_SETS == ("rods", "brax_v1")
+    for name, cls in tasks.PAPER_TASKS.items():
+        assert cls.name == name
+        for bodies in tasks.BODY_SETS:
+            task = getattr(cls, bodies)(horizon=7, noise=0.3, upright=0.5, substeps=2)
+            assert type(task) is cls and task.bodies == bodies
+            assert (task.horizon, task.noise, task.upright, task.substeps) == (7, 0.3, 0.5, 2)
+            replaced = dataclasses.replace(getattr(cls, bodies)(), horizon=7, noise=0.3, upright=0.5, substeps=2)
+            assert bool(eqx.tree_equal(replaced, task))
+    assert Acrobot.rods(trig=True).trig and Acrobot.rods(trig=True).observation_size == 6
+    with pytest.raises(TypeError, match="trig"):  # the double cartpole's layout is always trigonometric
+        DoubleCartpole.rods(trig=False)
 
 
-def test_chain_swingup_validates():
-    from lagrange.chain import Chain, Link
+def test_classes_are_abstract_or_final():
+    """The tasks are final concrete classes of the abstract ``AbstractTask`` (the swing-ups through
+    ``AbstractSwingup``); an abstract class cannot be built; the display name is a class constant, and no string
+    field selects a task's behaviour."""
+    chain = systems.acrobot()
+    with pytest.raises(TypeError, match="abstract"):
+        tasks.AbstractTask()
+    with pytest.raises(TypeError, match="abstract"):
+        tasks.AbstractSwingup(chain)
+    for cls in (tasks.AbstractTask, tasks.AbstractSwingup):
+        assert inspect.isabstract(cls) or cls.__abstractvars__ or cls.__abstractclassvars__
+    built = {Acrobot: Acrobot.rods(), Cartpole: Cartpole.rods(), DoubleCartpole: DoubleCartpole.rods(),
+             ChainSwingup: ChainSwingup(chain), DiffRLCartpole: DiffRLCartpole.diffrl()}
+    assert set(built) == set(FINAL)
+    for cls, task in built.items():
+        assert getattr(cls, "__final__", False) is True, cls
+        assert not inspect.isabstract(cls) and not cls.__abstractvars__ and not cls.__abstractclassvars__
+        assert isinstance(task, tasks.AbstractTask) and type(task) is cls
+        assert not hasattr(task, "kind") and "name" not in {f.name for f in dataclasses.fields(cls)}
+        assert isinstance(cls.name, str) and task.name == cls.name
+        assert not any(f.type in (str, "str") and f.name != "bodies" for f in dataclasses.fields(cls)), cls
+    assert issubclass(DiffRLCartpole, tasks.AbstractTask) and not issubclass(DiffRLCartpole, tasks.AbstractSwingup)
+    assert all(issubclass(c, tasks.AbstractSwingup) for c in (Acrobot, Cartpole, DoubleCartpole, ChainSwingup))
+    assert (ChainSwingup.name, DiffRLCartpole.name) == ("chain", "diffrl_cartpole")
 
+
+def test_reset_draws_by_hand():
+    """The reset's random draws, written out: the noise from ``split(key)``, the start row from
+    ``fold_in(key, 0x5A)``, the ``upright`` coin from ``fold_in(key, 0x0B)`` (each its own key, so adding one leaves
+    the others' draws as they were)."""
+    X = jnp.asarray(np.random.default_rng(0).normal(size=(5, 6)))
+    task = DoubleCartpole.rods(starts=X, upright=0.4, noise=0.05)
+    for seed in range(20):
+        key = jax.random.PRNGKey(seed)
+        kq, kv = jax.random.split(key)
+        q = jax.random.uniform(kq, (3,), jnp.float64, -0.05, 0.05)
+        qd = jax.random.uniform(kv, (3,), jnp.float64, -0.05, 0.05)
+        row = X[jax.random.randint(jax.random.fold_in(key, 0x5A), (), 0, 5)]
+        if jax.random.bernoulli(jax.random.fold_in(key, 0x0B), 0.4):
+            want_q, want_qd = q + jnp.array([0.0, jnp.pi, 0.0]), qd
+        else:
+            want_q, want_qd = q + row[:3], qd + row[3:]
+        got = task.reset(key)
+        np.testing.assert_array_equal(got.q, want_q) and np.testing.assert_array_equal(got.qd, want_qd)
+
+
+def test_chain_task_is_the_acrobot_on_the_acrobot_chain():
+    """``ChainSwingup`` on the acrobot's chain resets, steps, observes and rewards exactly as ``Acrobot``."""
+    a, c = Acrobot.rods(trig=True, upright=0.3), ChainSwingup(systems.acrobot(), trig=True, upright=0.3)
+    keys = jax.random.split(jax.random.PRNGKey(4), 64)
+    sa, sc = jax.vmap(a.reset)(keys), jax.vmap(c.reset)(keys)
+    np.testing.assert_array_equal(sa.q, sc.q)
+    u = jnp.full((64, 1), 0.7)
+    na, nc = jax.vmap(a.step)(sa, u), jax.vmap(c.step)(sc, u)
+    np.testing.assert_array_equal(na.qd, nc.qd)
+    np.testing.assert_array_equal(jax.vmap(a.observe)(na), jax.vmap(c.observe)(nc))
+    np.testing.assert_array_equal(jax.vmap(a.reward)(sa, u, na), jax.vmap(c.reward)(sc, u, nc))
+
+
+def test_chain_task_validates():
     cart = lg.systems.cartpole()
-    with pytest.raises(ValueError, match="revolute"):
-        tasks.chain_swingup(cart)
-    with pytest.raises(ValueError, match="actuated"):
-        tasks.chain_swingup(Chain([Link("revolute", 1.0, 1.0)]))
+    with pytest.raises(ValueError, match="ChainSwingup needs revolute joints only"):
+        ChainSwingup(cart)
+    with pytest.raises(ValueError, match="ChainSwingup needs an actuated chain"):
+        ChainSwingup(Chain([Link("revolute", 1.0, 1.0)]))
+    pendulum = lg.systems.pendulum(gear=5.0)
+    for field, value in (("noise", -0.1), ("horizon", 0), ("horizon", 2.5), ("substeps", 0), ("dt", 0.0)):
+        with pytest.raises(ValueError, match=f"ChainSwingup.{field} must be"):
+            ChainSwingup(pendulum, **{field: value})
+
+
+def test_paper_tasks_check_their_chain():
+    """A paper task on a chain of the wrong shape is refused, naming the joints it needs."""
+    with pytest.raises(ValueError, match=r"Acrobot.chain must have the joints \('revolute', 'revolute'\)"):
+        Acrobot(systems.cartpole())
+    with pytest.raises(ValueError, match="Cartpole.chain must have the joints"):
+        Cartpole(systems.double_cartpole())
+    with pytest.raises(ValueError, match="DoubleCartpole.chain must have the joints"):
+        DoubleCartpole(systems.cartpole())
+    with pytest.raises(ValueError, match="Acrobot.chain must be actuated"):
+        Acrobot(systems.acrobot(gear=None))
 
 
 def test_trig_observation_is_continuous_through_hanging():
-    import dataclasses
-
-    a = dataclasses.replace(tasks.acrobot(), trig=True)
+    a = dataclasses.replace(Acrobot.rods(), trig=True)
+    assert bool(eqx.tree_equal(a, Acrobot.rods(trig=True)))
     left, right = _state([-1e-6, 0.2], [1.0, 0.0]), _state([1e-6, 0.2], [1.0, 0.0])
     np.testing.assert_allclose(a.observe(left), a.observe(right), atol=1e-5)
-    paper = tasks.acrobot()
+    paper = Acrobot.rods()
     assert abs(float(paper.observe(left)[0] - paper.observe(right)[0])) > 6.28  # the wrapped angle jumps by 2 pi
     s = _state([np.pi + 0.3, -0.2], [1.0, -2.0])
     np.testing.assert_allclose(a.observe(s), [np.sin(0.3), np.sin(-0.2), np.cos(0.3), np.cos(-0.2), 1.0, -2.0],

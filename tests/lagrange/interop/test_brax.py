@@ -4,14 +4,12 @@ namespace on exit. (That importing the adapters changes no other module is in te
 
 from __future__ import annotations
 
-import dataclasses
-
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from lagrange.tasks import make_task
+from lagrange.tasks import Cartpole, DoubleCartpole
 
 
 def _task_rollout(task, key, actions):
@@ -68,7 +66,7 @@ def test_brax_env_reproduces_the_task_and_ends_at_the_horizon():
 
     from lagrange.interop.brax import BraxEnv
 
-    task = dataclasses.replace(make_task("double_cartpole"), horizon=7)
+    task = DoubleCartpole.rods(horizon=7)
     env = BraxEnv(task)
     assert (env.observation_size, env.action_size) == (8, 1)
     key = jax.random.PRNGKey(4)
@@ -114,7 +112,7 @@ def test_brax_ppo_runs_one_iteration_on_a_task():
 
     from lagrange.interop.brax import BraxEnv, brax_training_compat
 
-    task = dataclasses.replace(make_task("cartpole"), horizon=50)
+    task = Cartpole.rods(horizon=50)
     log = []
     with brax_training_compat():
         make_policy, params, _ = ppo.train(

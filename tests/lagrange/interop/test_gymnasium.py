@@ -3,12 +3,10 @@ the task exactly, truncates episodes at the horizon and renders the chain."""
 
 from __future__ import annotations
 
-import dataclasses
-
 import jax.numpy as jnp
 import numpy as np
 
-from lagrange.tasks import make_task
+from lagrange.tasks import PAPER_TASKS, Acrobot
 
 
 def test_gym_env_passes_check_env():
@@ -17,13 +15,13 @@ def test_gym_env_passes_check_env():
     from lagrange.interop.gymnasium import GymEnv
 
     for name in ("acrobot", "cartpole", "double_cartpole"):
-        check_env(GymEnv(make_task(name), render_mode="rgb_array"), skip_render_check=False)
+        check_env(GymEnv(PAPER_TASKS[name].rods(), render_mode="rgb_array"), skip_render_check=False)
 
 
 def test_gym_env_reproduces_the_task_truncates_at_the_horizon_and_renders():
     from lagrange.interop.gymnasium import GymEnv
 
-    task = dataclasses.replace(make_task("acrobot"), horizon=5)
+    task = Acrobot.rods(horizon=5)
     env = GymEnv(task, render_mode="rgb_array")
     obs, info = env.reset(seed=3)
     obs_again, _ = GymEnv(task).reset(seed=3)

@@ -1,0 +1,47 @@
+"""Control tasks on exact chains: the CE-APG paper's swing-ups and the SHAC authors' cartpole.
+
+A task is an immutable :class:`equinox.Module` with pure methods ``reset(key)``, ``step(state, action)``,
+``observe(state)`` and ``reward(state, action, next_state)`` (:class:`AbstractTask`, in :mod:`lagrange.tasks.base`):
+
+- :class:`Acrobot`, :class:`Cartpole` and :class:`DoubleCartpole`, the CE-APG paper's swing-ups, built on this
+  library's rods (``Acrobot.rods()``) or on the authors' Brax v1 bodies (``Acrobot.brax_v1()``), and
+  :class:`ChainSwingup` for a revolute chain of one's own (:mod:`lagrange.tasks.swingup`, with the integrator's error
+  table); :data:`PAPER_TASKS` names the paper's three, :data:`BODY_SETS` their constructors.
+- :class:`DiffRLCartpole`, the SHAC authors' environment, NVlabs/DiffRL (:mod:`lagrange.tasks.diffrl_cartpole`).
+- :func:`balanced`, :func:`upright_error` and :func:`leaves_upright` judge an episode
+  (:mod:`lagrange.tasks.balance`).
+
+Each final class documents its state, action, observation and reward in a table.
+"""
+
+from lagrange.tasks.balance import balanced, leaves_upright, upright_error
+from lagrange.tasks.base import AbstractTask, TaskState, control_step, wrap
+from lagrange.tasks.diffrl_cartpole import POLE_INERTIA, DiffRLCartpole
+from lagrange.tasks.swingup import (
+    BODY_SETS,
+    PAPER_TASKS,
+    AbstractSwingup,
+    Acrobot,
+    Cartpole,
+    ChainSwingup,
+    DoubleCartpole,
+)
+
+__all__ = [
+    "AbstractTask",
+    "TaskState",
+    "control_step",
+    "wrap",
+    "AbstractSwingup",
+    "Acrobot",
+    "Cartpole",
+    "DoubleCartpole",
+    "ChainSwingup",
+    "PAPER_TASKS",
+    "BODY_SETS",
+    "DiffRLCartpole",
+    "POLE_INERTIA",
+    "balanced",
+    "leaves_upright",
+    "upright_error",
+]

@@ -1,0 +1,55 @@
+"""Judging an episode: how far the poles are from upright, whether they end balanced, and how long a hold lasts.
+
+Each measures every pole by its absolute orientation (the sum of the joint angles from the base, the cart
+excluded; :meth:`~lagrange.tasks.AbstractTask.link_angles`), so an elbow bent back against a leaning shoulder keeps
+the second link upright.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, ArrayLike, Bool, Float, Int
+
+from lagrange.tasks.base import AbstractTask, _link_angles
+
+__all__ = ["balanced", "leaves_upright", "upright_error"]
+
+
+def balanced(task: AbstractTask, q: Float[ArrayLike, "*batch T n"], *, fraction: float = 0.2,
+             tolerance: float = 0.2) -> Bool[Array, " *batch"]:
+    """Whether every pole stays within ``tolerance`` rad of upright during the final ``fraction`` of an episode.
+
+    ``q`` is a trajectory of coordinates (T, n) (leading batch dims allowed); "upright" is measured
+    on each link's absolute orientation. Returns a boolean array of the batch shape.
+    """
+    q = jnp.asarray(q)
+    T = q.shape[-2]
+    start = T - max(1, int(np.ceil(fraction * T)))
+    return jnp.all(upright_error(task, q[..., start:, :]) <= tolerance, axis=-1)
+
+
+def leaves_upright(task: AbstractTask, q: Float[ArrayLike, "*batch T n"], *, tolerance: float,
+                   from_step: int = 0) -> Int[np.ndarray, " *batch"]:
+    """How long a hold lasts: per episode, the first step ``t >= from_step`` at which some pole is more than
+    ``tolerance`` rad from upright (:func:`upright_error`, as :func:`balanced` measures it), -1 where none is.
+
+    ``q`` is a trajectory of coordinates (T, n) (leading batch dims allowed), step ``t`` at ``q[..., t, :]``; a
+    non-finite step counts as having left. Returns a NumPy integer array of the batch shape (0-d for one episode).
+    """
+    q = jnp.asarray(q)
+    if q.ndim < 2 or q.shape[-1] != task.chain.n:
+        raise ValueError(f"leaves_upright: q must have shape (..., T, n = {task.chain.n}), got {q.shape}")
+    if not tolerance > 0:
+        raise ValueError(f"leaves_upright: tolerance must be > 0 (rad), got {tolerance!r}")
+    if not (isinstance(from_step, (int, np.integer)) and 0 <= from_step < q.shape[-2]):
+        raise ValueError(f"leaves_upright: from_step must be an integer in [0, T = {q.shape[-2]}), got {from_step!r}")
+    left = ~(np.asarray(upright_error(task, q))[..., from_step:] <= tolerance)
+    return np.where(left.any(axis=-1), from_step + left.argmax(axis=-1), -1)
+
+
+def upright_error(task: AbstractTask, q: Float[ArrayLike, "*batch n"]) -> Float[Array, " *batch"]:
+    """The largest angle (rad) by which any pole is away from upright, per step: ``q`` (..., n) -> (...).
+
+    Measured on each link's absolute orientation (the sum of the joint angles from the base), the cart excluded."""
+    return jnp.max(jnp.abs(_link_angles(task, jnp.asarray(q))), axis=-1)

@@ -1,0 +1,357 @@
+"""Swing-up tasks of the CE-APG paper on exact reduced-coordinate chains.
+
+:class:`Acrobot`, :class:`Cartpole` (Table I's "Pendulum") and :class:`DoubleCartpole` are the paper's three tasks,
+each documented by a table of its state, action, observation and reward; :class:`ChainSwingup` gives any fixed-base
+revolute chain with a motor the acrobot's observation and reward. All four share :class:`AbstractSwingup`'s fields
+and reset: episodes of 500 control steps without early termination, starting hanging down with uniform noise in
+``[-0.01, 0.01]`` on every coordinate and velocity (the cart position included). Angles are wrapped to
+``(-pi, pi]``, 0 upright for the first pole (``th1 = wrap(q1 - pi)``) and straight for later links
+(``th2 = wrap(q2)``), as in the authors' environments.
+
+Body sets. ``Acrobot.rods()`` (likewise ``Cartpole.rods()``, ``DoubleCartpole.rods()``) builds the task on this
+library's bodies: the paper-facts, with thin-rod inertias ``m l^2 / 12`` and 1 m links where the paper states no
+length (acrobot two links 1 m, 2.5 kg; cartpole cart 10.47 kg, pole 5.02 kg, 1 m; double cartpole cart 10.47 kg,
+poles 5.02 kg, 1 m each). ``Acrobot.brax_v1()`` builds the same task (reward, observation, gear, dt and noise
+unchanged) on the bodies the authors' Brax v1 configs describe: shorter hinge spacings, every inertia 1 kg m^2
+(:data:`lagrange.systems.BRAX_V1`). Both take the task's fields as keywords (``Acrobot.rods(trig=True,
+horizon=100)``); ``Acrobot(chain)`` puts the task on a chain of one's own. Control intervals: acrobot 0.01 s,
+cartpole 0.04 s, double cartpole 0.01 s.
+
+Integrator. Each control interval is one classic RK4 step (``lg.RK4()``, ``substeps=1``); the authors' Brax substep
+counts (4, 8, 12) were needed by a stiff spring-joint engine, not by exact reduced coordinates. Measured final-state
+error of a 500-step episode under an energetic open-loop pumping action, against ``Dopri8`` at
+``rtol = atol = 1e-12`` in float64 (max over the episode in brackets), angles in rad:
+
+=================  =================  =================  =================  ====================
+solver, substeps   acrobot            cartpole           double cartpole    cost (force evals)
+=================  =================  =================  =================  ====================
+SemiImplicitEuler 4  5.4e-1 (7.3e-1)  1.9e-1 (1.9e-1)    2.3e-1 (1.4e+0)    4
+SemiImplicitEuler 8  2.3e-1 (4.0e-1)  1.0e-1 (1.0e-1)    2.2e-1 (7.2e-1)    8
+RK4 1              1.9e-5 (1.1e-4)    1.9e-4 (1.9e-4)    4.8e-5 (1.4e-4)    4
+RK4 2              4.7e-7 (2.9e-6)    5.0e-6 (6.9e-6)    7.3e-7 (3.3e-6)    8
+RK4 4              6.2e-9 (5.6e-8)    9.9e-8 (4.9e-7)    2.6e-8 (4.3e-8)    16
+=================  =================  =================  =================  ====================
+
+RK4 with one step per interval is 50-500 times below the +-0.01 rad reset noise (the scale below which two
+episodes are indistinguishable to the task) and close to float32 round-off (float32 RK4 gives 1e-5..7e-5 at every
+substep count), so more substeps would buy nothing; the Euler variants at the same cost are off by tenths of a
+radian.
+"""
+
+from typing import ClassVar, final
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from equinox import AbstractVar
+from jaxtyping import Array, ArrayLike, Float, PRNGKeyArray
+
+from lagrange import systems
+from lagrange.chain import Chain
+from lagrange.solvers import RK4
+from lagrange.tasks.base import AbstractTask, TaskState, _check_joints, _check_schedule, _Solver
+
+__all__ = ["AbstractSwingup", "Acrobot", "Cartpole", "DoubleCartpole", "ChainSwingup", "PAPER_TASKS", "BODY_SETS"]
+
+BODY_SETS = ("rods", "brax_v1")
+"""The body sets of the paper tasks, by the name of their constructors: this library's rods (``Acrobot.rods()``), or
+the CE-APG authors' Brax v1 bodies (``Acrobot.brax_v1()``, :data:`lagrange.systems.BRAX_V1`)."""
+
+
+class AbstractSwingup(AbstractTask):
+    """A swing-up task of the CE-APG paper: the fields and the reset its tasks share.
+
+    Fields (all but ``chain`` keyword-only):
+
+    - ``chain``: the chain; ``dt``: the control interval [s] (each final class has its default).
+    - ``horizon``: control steps per episode [500]; ``substeps``, ``solver``: ``substeps`` steps of ``solver`` per
+      interval [1, ``RK4()``; see the module's table].
+    - ``noise``: half-width of the uniform reset noise on every ``q`` and ``qd`` [0.01].
+    - ``upright``: the probability of starting balanced upright instead of hanging [0]; 1 gives a balance-only task,
+      a fraction is a training curriculum. The coin has its own key, so ``upright=0`` draws exactly the paper's
+      starts.
+    - ``starts``: ``None`` or an array (K, 2n) of states ``(q, qd)``: a start-state curriculum (e.g. states along a
+      known swing-up, training from the end backwards); each reset draws a row uniformly, plus the same noise,
+      instead of hanging. The ``upright`` coin still comes first.
+    - ``bodies``: a label, ``"rods"`` or ``"brax_v1"`` for a task built by those constructors (see
+      :data:`BODY_SETS`), ``None`` for one built on another chain. Only recorded, never switched on.
+    """
+
+    chain: Chain
+    dt: AbstractVar[float]
+    horizon: int = eqx.field(static=True, default=500, kw_only=True)
+    substeps: int = eqx.field(static=True, default=1, kw_only=True)
+    noise: float = eqx.field(static=True, default=0.01, kw_only=True)
+    solver: _Solver = eqx.field(
+        static=True, default=RK4(), kw_only=True)
+    upright: float = eqx.field(static=True, default=0.0, kw_only=True)
+    starts: Float[Array, "K 2*n"] | None = eqx.field(default=None, kw_only=True)
+    bodies: str | None = eqx.field(static=True, default=None, kw_only=True)
+
+    def __check_init__(self):
+        cls = type(self).__name__
+        _check_schedule(self)
+        if not self.noise >= 0:
+            raise ValueError(f"{cls}.noise must be >= 0, got {self.noise!r}")
+        if not 0 <= float(self.upright) <= 1:
+            raise ValueError(f"{cls}.upright must be a probability in [0, 1], got {self.upright!r}")
+        if self.bodies is not None and self.bodies not in BODY_SETS:
+            raise ValueError(f"{cls}.bodies must be None or one of {list(BODY_SETS)}, got {self.bodies!r}")
+        if self.starts is not None and not isinstance(self.starts, jax.core.Tracer):
+            shape, want = np.shape(self.starts), 2 * self.chain.n
+            if len(shape) != 2 or shape[0] < 1 or shape[1] != want:
+                raise ValueError(f"{cls}.starts must be an array of shape (K >= 1, 2 n = {want}) of states (q, qd), "
+                                 f"got shape {shape}")
+            if not np.all(np.isfinite(np.asarray(self.starts))):
+                raise ValueError(f"{cls}.starts must be finite")
+
+    def reset(self, key: PRNGKeyArray) -> TaskState:
+        """Hanging down (or a state drawn uniformly from ``starts``), with uniform noise in ``[-noise, noise]`` on
+        every ``q`` and ``qd``; balanced upright instead with probability ``upright`` (1: always, a balance-only
+        task)."""
+        n = self.chain.n
+        dtype = jnp.result_type(self.chain.mass)
+        kq, kv = jax.random.split(key)
+        q = jax.random.uniform(kq, (n,), dtype, -self.noise, self.noise)
+        qd = jax.random.uniform(kv, (n,), dtype, -self.noise, self.noise)
+        hanging = jnp.zeros(n, dtype)
+        start_q, start_qd = hanging, hanging
+        if self.starts is not None:  # its own key too, so the noise is the same as without starts
+            x = self.starts[jax.random.randint(jax.random.fold_in(key, 0x5A), (), 0, self.starts.shape[0])]
+            start_q, start_qd = x[:n].astype(dtype), x[n:].astype(dtype)
+        upright = hanging.at[self.first_pole].set(jnp.pi)
+        p = float(self.upright)
+        if p >= 1:
+            start_q, start_qd = upright, hanging
+        elif p > 0:  # the coin has its own key, so p = 0 draws exactly the paper's starts
+            up = jax.random.bernoulli(jax.random.fold_in(key, 0x0B), p)
+            start_q, start_qd = jnp.where(up, upright, start_q), jnp.where(up, hanging, start_qd)
+        return TaskState(q + start_q, qd + start_qd)
+
+
+def _observe(task: AbstractTask, state: TaskState, trig: bool) -> Float[Array, " observation_size"]:
+    """``(x, th, dx, dth)``, or ``(x, sin th, cos th, dx, dth)`` with ``trig`` (``x, dx`` only with a cart)."""
+    th, dth = task.angles(state), task.angular_velocities(state)
+    x, dx = (state.q[:1], state.qd[:1]) if task.cart else (state.q[:0], state.qd[:0])
+    if trig:
+        return jnp.concatenate([x, jnp.sin(th), jnp.cos(th), dx, dth])
+    return jnp.concatenate([x, th, dx, dth])
+
+
+def _observation_size(task: AbstractTask, trig: bool) -> int:
+    return 3 * task.n_links + (2 if task.cart else 0) if trig else 2 * task.chain.n
+
+
+def _upright_reward(task: AbstractTask, next_state: TaskState) -> Float[Array, ""]:
+    """``10 - sum th^2 - 0.01 sum dth^2`` of ``next_state``."""
+    th, dth = task.angles(next_state), task.angular_velocities(next_state)
+    return 10.0 - jnp.sum(th**2) - 0.01 * jnp.sum(dth**2)
+
+
+@final
+class Acrobot(AbstractSwingup):
+    """Acrobot swing-up: two links, a passive shoulder and a motor at the elbow.
+
+    =====================  ========================================================================================
+    state ``q`` / ``qd``   (q1, q2) / (qd1, qd2): shoulder and elbow angles, relative, 0 hanging straight [rad]
+    action (gear)          elbow torque ``25 a`` N m, ``a`` clipped to [-1, 1]
+    observation (4,)       (th1, th2, dth1, dth2); ``trig=True``: (sin th1, sin th2, cos th1, cos th2, dth1, dth2)
+    reward per step        ``10 - (th1^2 + th2^2) - 0.01 (dth1^2 + dth2^2)``; max 5000
+    episode                500 control steps of dt = 0.01 s, no early termination
+    reset                  hanging down, U(-0.01, 0.01) on every coordinate and velocity
+    =====================  ========================================================================================
+
+    ``trig=True`` (not the paper's) observes ``(sin th, cos th, dth)`` instead of the wrapped angles, which jump by
+    2 pi at every swing through hanging. Build it with :meth:`rods` or :meth:`brax_v1`, or ``Acrobot(chain)`` on a
+    two-link chain of one's own (:func:`lagrange.systems.acrobot`).
+    """
+
+    dt: float = eqx.field(static=True, default=0.01, kw_only=True)
+    trig: bool = eqx.field(static=True, default=False, kw_only=True)
+
+    first_pole: ClassVar[int] = 0
+    name: ClassVar[str] = "acrobot"
+
+    def __check_init__(self):
+        _check_joints(self, ("revolute", "revolute"))
+
+    @classmethod
+    def rods(cls, **options) -> "Acrobot":
+        """The paper's acrobot on this library's rods (:func:`lagrange.systems.acrobot`); ``options`` are the
+        task's fields (``trig``, ``horizon``, ``noise``, ``upright``, ``starts``, ``solver``, ``substeps``)."""
+        return cls(systems.acrobot(), bodies="rods", **options)
+
+    @classmethod
+    def brax_v1(cls, **options) -> "Acrobot":
+        """The paper's acrobot on the authors' Brax v1 bodies (``lagrange.systems.BRAX_V1["acrobot"]``); ``options``
+        as for :meth:`rods`."""
+        return cls(systems.acrobot(**systems.BRAX_V1["acrobot"]), bodies="brax_v1", **options)
+
+    @property
+    def observation_size(self) -> int:
+        return _observation_size(self, self.trig)
+
+    def observe(self, state: TaskState) -> Float[Array, " observation_size"]:
+        """``(th1, th2, dth1, dth2)``, or ``(sin th1, sin th2, cos th1, cos th2, dth1, dth2)`` with ``trig``."""
+        return _observe(self, state, self.trig)
+
+    def reward(self, state: TaskState, action: Float[ArrayLike, " m"], next_state: TaskState) -> Float[Array, ""]:
+        """``10 - (th1^2 + th2^2) - 0.01 (dth1^2 + dth2^2)`` of ``next_state``."""
+        del state, action
+        return _upright_reward(self, next_state)
+
+
+@final
+class Cartpole(AbstractSwingup):
+    """Cartpole swing-up (the paper's Table I "Pendulum"): a motorised cart on a rail carrying a passive pole.
+
+    =====================  ========================================================================================
+    state ``q`` / ``qd``   (x, q) / (dx, dq): cart position [m], pole angle relative to hanging down [rad]
+    action (gear)          cart force ``100 a`` N, ``a`` clipped to [-1, 1]
+    observation (4,)       (x, th, dx, dth); ``trig=True``: (x, sin th, cos th, dx, dth)
+    reward per step        ``-th^2``; max 0
+    episode                500 control steps of dt = 0.04 s, no early termination
+    reset                  hanging down, U(-0.01, 0.01) on every coordinate and velocity (the cart's included)
+    =====================  ========================================================================================
+
+    Build it with :meth:`rods` or :meth:`brax_v1`, or ``Cartpole(chain)`` on a chain of
+    :func:`lagrange.systems.cartpole`.
+    """
+
+    dt: float = eqx.field(static=True, default=0.04, kw_only=True)
+    trig: bool = eqx.field(static=True, default=False, kw_only=True)
+
+    first_pole: ClassVar[int] = 1
+    name: ClassVar[str] = "cartpole"
+
+    def __check_init__(self):
+        _check_joints(self, ("prismatic", "revolute"))
+
+    @classmethod
+    def rods(cls, **options) -> "Cartpole":
+        """The paper's cartpole on this library's rods (:func:`lagrange.systems.cartpole`); ``options`` are the
+        task's fields (``trig``, ``horizon``, ``noise``, ``upright``, ``starts``, ``solver``, ``substeps``)."""
+        return cls(systems.cartpole(), bodies="rods", **options)
+
+    @classmethod
+    def brax_v1(cls, **options) -> "Cartpole":
+        """The paper's cartpole on the authors' Brax v1 bodies (``lagrange.systems.BRAX_V1["cartpole"]``);
+        ``options`` as for :meth:`rods`."""
+        return cls(systems.cartpole(**systems.BRAX_V1["cartpole"]), bodies="brax_v1", **options)
+
+    @property
+    def observation_size(self) -> int:
+        return _observation_size(self, self.trig)
+
+    def observe(self, state: TaskState) -> Float[Array, " observation_size"]:
+        """``(x, th, dx, dth)``, or ``(x, sin th, cos th, dx, dth)`` with ``trig``."""
+        return _observe(self, state, self.trig)
+
+    def reward(self, state: TaskState, action: Float[ArrayLike, " m"], next_state: TaskState) -> Float[Array, ""]:
+        """``-th^2`` of ``next_state``."""
+        del state, action
+        th = self.angles(next_state)
+        return -jnp.sum(th**2)
+
+
+@final
+class DoubleCartpole(AbstractSwingup):
+    """Double-cartpole swing-up: a motorised cart carrying two passive poles in series.
+
+    =====================  ========================================================================================
+    state ``q`` / ``qd``   (x, q1, q2) / (dx, dq1, dq2): cart position [m], relative pole angles, 0 hanging [rad]
+    action (gear)          cart force ``1000 a`` N, ``a`` clipped to [-1, 1]
+    observation (8,)       (x, sin th1, sin th2, cos th1, cos th2, dx, dth1, dth2)
+    reward per step        ``10 - (th1^2 + th2^2 + x^2) - 0.01 (dth1^2 + dth2^2)``; max 5000
+    episode                500 control steps of dt = 0.01 s, no early termination
+    reset                  hanging down, U(-0.01, 0.01) on every coordinate and velocity (the cart's included)
+    =====================  ========================================================================================
+
+    The observation is always the trigonometric layout (``trig`` is True, a class constant). Build it with
+    :meth:`rods` or :meth:`brax_v1`, or ``DoubleCartpole(chain)`` on a chain of
+    :func:`lagrange.systems.double_cartpole`.
+    """
+
+    dt: float = eqx.field(static=True, default=0.01, kw_only=True)
+
+    trig: ClassVar[bool] = True
+    first_pole: ClassVar[int] = 1
+    name: ClassVar[str] = "double_cartpole"
+
+    def __check_init__(self):
+        _check_joints(self, ("prismatic", "revolute", "revolute"))
+
+    @classmethod
+    def rods(cls, **options) -> "DoubleCartpole":
+        """The paper's double cartpole on this library's rods (:func:`lagrange.systems.double_cartpole`); ``options``
+        are the task's fields (``horizon``, ``noise``, ``upright``, ``starts``, ``solver``, ``substeps``)."""
+        return cls(systems.double_cartpole(), bodies="rods", **options)
+
+    @classmethod
+    def brax_v1(cls, **options) -> "DoubleCartpole":
+        """The paper's double cartpole on the authors' Brax v1 bodies
+        (``lagrange.systems.BRAX_V1["double_cartpole"]``); ``options`` as for :meth:`rods`."""
+        return cls(systems.double_cartpole(**systems.BRAX_V1["double_cartpole"]), bodies="brax_v1", **options)
+
+    @property
+    def observation_size(self) -> int:
+        return _observation_size(self, True)
+
+    def observe(self, state: TaskState) -> Float[Array, " observation_size"]:
+        """``(x, sin th1, sin th2, cos th1, cos th2, dx, dth1, dth2)``."""
+        return _observe(self, state, True)
+
+    def reward(self, state: TaskState, action: Float[ArrayLike, " m"], next_state: TaskState) -> Float[Array, ""]:
+        """``10 - (th1^2 + th2^2 + x^2) - 0.01 (dth1^2 + dth2^2)`` of ``next_state``."""
+        del state, action
+        return _upright_reward(self, next_state) - next_state.q[0] ** 2
+
+
+@final
+class ChainSwingup(AbstractSwingup):
+    """Swing-up of any fixed-base chain of revolute links with at least one motor, with the acrobot's observation
+    and reward.
+
+    =====================  ========================================================================================
+    state ``q`` / ``qd``   (q1, ..., qn) / (qd1, ..., qdn): relative joint angles, 0 hanging straight [rad]
+    action (gear)          torques ``gear_k a_k`` N m on the actuated joints, ``a`` clipped to [-1, 1]
+    observation (2n,)      (th1, ..., thn, dth1, ..., dthn); ``trig=True``: (sin th, cos th, dth), (3n,)
+    reward per step        ``10 - sum th_i^2 - 0.01 sum dth_i^2``; max 10 per step
+    episode                ``horizon`` control steps of ``dt`` (defaults 500 and 0.01 s), no early termination
+    reset                  hanging down, U(-noise, noise) on every coordinate and velocity
+    =====================  ========================================================================================
+
+    ``ChainSwingup(chain, dt=0.05, horizon=100, upright=1.0)`` is a balance-only task on ``chain``. Raises
+    ``ValueError`` for a chain with a prismatic joint or without a motor.
+    """
+
+    dt: float = eqx.field(static=True, default=0.01, kw_only=True)
+    trig: bool = eqx.field(static=True, default=False, kw_only=True)
+
+    first_pole: ClassVar[int] = 0
+    name: ClassVar[str] = "chain"
+
+    def __check_init__(self):
+        if any(j != "revolute" for j in self.chain.joints):
+            raise ValueError(f"ChainSwingup needs revolute joints only, got joints={self.chain.joints}")
+        if self.chain.m < 1:
+            raise ValueError("ChainSwingup needs an actuated chain (some link with a gear), got chain.m=0")
+
+    @property
+    def observation_size(self) -> int:
+        return _observation_size(self, self.trig)
+
+    def observe(self, state: TaskState) -> Float[Array, " observation_size"]:
+        """``(th, dth)``, or ``(sin th, cos th, dth)`` with ``trig``."""
+        return _observe(self, state, self.trig)
+
+    def reward(self, state: TaskState, action: Float[ArrayLike, " m"], next_state: TaskState) -> Float[Array, ""]:
+        """``10 - sum th_i^2 - 0.01 sum dth_i^2`` of ``next_state``."""
+        del state, action
+        return _upright_reward(self, next_state)
+
+
+PAPER_TASKS: dict[str, type[AbstractSwingup]] = {"acrobot": Acrobot, "cartpole": Cartpole,
+                                                 "double_cartpole": DoubleCartpole}
+"""The CE-APG paper's tasks by name (for command lines): ``PAPER_TASKS[name].rods()`` or ``.brax_v1()``."""
