@@ -1,10 +1,10 @@
-"""Shared helpers of the benchmark scripts: where they write, and the ``--bodies`` flag."""
+"""Shared helpers of the benchmark scripts: where they write, the ``--bodies`` flag, and the paper tasks by name."""
 
 from __future__ import annotations
 
 import pathlib
 
-from lagrange.tasks import BODIES
+from lagrange.tasks import BODY_SETS, PAPER_TASKS
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 RESULTS = REPO / "benchmarks" / "results"  # the published tables (JSON, markdown)
@@ -18,9 +18,21 @@ def outputs(quick: bool) -> tuple[pathlib.Path, pathlib.Path]:
     return (QUICK, QUICK) if quick else (RESULTS, IMG)
 
 
+def paper_task(name: str, bodies: str = "rods", **options):
+    """The paper task called ``name`` (a key of ``lagrange.tasks.PAPER_TASKS``) on the body set ``bodies`` (one of
+    ``lagrange.tasks.BODY_SETS``: the task class's constructor of that name, e.g. ``Acrobot.brax_v1``); ``options``
+    are task fields (``trig``, ``horizon``, ...) passed to that constructor."""
+    if name not in PAPER_TASKS:
+        raise ValueError(f"task must be one of {sorted(PAPER_TASKS)}, got {name!r}")
+    if bodies not in BODY_SETS:
+        raise ValueError(f"bodies must be one of {list(BODY_SETS)}, got {bodies!r}")
+    return getattr(PAPER_TASKS[name], bodies)(**options)
+
+
 def add_bodies_flag(parser) -> None:
-    """``--bodies rods|brax_v1``: the paper task's bodies (``lagrange.tasks.make_task``)."""
-    parser.add_argument("--bodies", choices=BODIES, default="rods", help="the task's bodies (lagrange.tasks.make_task)")
+    """``--bodies rods|brax_v1``: the paper task's body set (:func:`paper_task`)."""
+    parser.add_argument("--bodies", choices=BODY_SETS, default="rods",
+                        help="the task's body set (the task class's constructor of that name, e.g. Acrobot.brax_v1)")
 
 
 def bodies_suffix(bodies: str) -> str:

@@ -7,28 +7,29 @@
     python -m benchmarks.algorithms --budget full                    # the paper's budgets, 8 seeds (days here)
     python -m benchmarks.algorithms --budget laptop --bodies brax_v1 --tasks acrobot   # on the authors' bodies
 
-Every algorithm trains on the same task objects (:func:`lagrange.tasks.make_task`; the Brax trainers see
-them through :class:`lagrange.interop.brax.BraxEnv`, unchanged). The final policy of each run is evaluated
-*deterministically* by this script on the same 16 random starts (``PRNGKey(10_000 + seed)``), with the
-task's own 500-step return and :func:`lagrange.tasks.balanced`. Learning curves are deterministic
-evaluation returns against simulated environment steps and against wall-clock seconds since the start of
-the run (compilation and evaluation included). Brax's curves use Brax's own evaluator
+Every algorithm trains on the same task objects (``lagrange.tasks.PAPER_TASKS[name].rods()``, e.g.
+``Acrobot.rods()``; the Brax trainers see them through :class:`lagrange.interop.brax.BraxEnv`, unchanged). The final
+policy of each run is evaluated *deterministically* by this script on the same 16 random starts
+(``PRNGKey(10_000 + seed)``), with the task's own 500-step return and :func:`lagrange.tasks.balanced`. Learning curves
+are deterministic evaluation returns against simulated environment steps and against wall-clock seconds since the
+start of the run (compilation and evaluation included). Brax's curves use Brax's own evaluator
 (``deterministic_eval=True``) on its own random starts. ``--bodies brax_v1`` puts every algorithm on the
-authors' Brax v1 bodies instead of this library's rods (``make_task(name, "brax_v1")``, the bodies the paper's
+authors' Brax v1 bodies instead of this library's rods (``Acrobot.brax_v1()`` etc., the bodies the paper's
 Table I was measured on); its runs, table and plots get a ``_brax_v1`` suffix.
 
 Budgets (``--budget``):
 
-* ``full`` (``FULL``): CE-APG the authors' protocol (``CEAPGConfig.paper``, 200 iterations x 4.8e6
-  steps); SHAC the authors' cartpole config (64 envs x 32-step windows x 500 epochs, 1e6 steps); PPO, SAC
-  and Brax APG the hyperparameters of the CE-APG paper's appendix IX-C (PPO 8e7 steps, 512 envs, batch
-  256, 32 minibatches, unroll 50, 8 update epochs, discount 0.99, lr 3e-4, entropy 1e-3; SAC 2e6 steps, 64
-  envs, batch 128, discount 0.95, lr 1e-3; Brax APG 1e7 steps, 24 envs, lr 5e-4, whole 500-step episodes
-  per update).
+* ``full`` (``FULL``): CE-APG the authors' protocol (``CEAPGConfig.paper()`` with ``GRUPolicy`` of width 16, 32 on
+  the double cartpole: 200 iterations x 4.8e6 steps); SHAC the authors' cartpole config (64 envs x 32-step windows x
+  500 epochs, 1e6 steps); PPO, SAC and Brax APG the hyperparameters of the CE-APG paper's appendix IX-C (PPO 8e7
+  steps, 512 envs, batch 256, 32 minibatches, unroll 50, 8 update epochs, discount 0.99, lr 3e-4, entropy 1e-3; SAC
+  2e6 steps, 64 envs, batch 128, discount 0.95, lr 1e-3; Brax APG 1e7 steps, 24 envs, lr 5e-4, whole 500-step
+  episodes per update).
 * ``laptop`` (``LAPTOP``): what two shared CPU cores afford: ``full`` for SHAC, SAC and Brax APG, PPO
   with the same hyperparameters but 1.2e6 of its 8e7 steps (3 updates; ``LAPTOP_CUTS``); CE-APG this
-  project's laptop protocol, ``CEAPGConfig.laptop(task)`` (also the ``laptop`` budget of
-  ``benchmarks/paper_tables.py`` and the examples' default). ``--ce-apg-from DIR`` takes
+  project's laptop protocol, ``CEAPGConfig.laptop(task)`` with ``(sin, cos)`` observations on the acrobot
+  (``Acrobot.rods(trig=True)``; also the ``laptop`` budget of ``benchmarks/paper_tables.py`` and the examples'
+  default). ``--ce-apg-from DIR`` takes
   CE-APG's results from the ``ce_apg_<task>_<seed>.json`` files that ``benchmarks/paper_tables.py``
   writes instead of training (its curve is then the training fitness of the best candidate from the
   run's checkpoint header, when the ``.eqx`` is beside it).
@@ -65,11 +66,13 @@ import jax.numpy as jnp  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from benchmarks._cli import add_bodies_flag, bodies_marker, bodies_suffix, marked_bodies, outputs  # noqa: E402
-from lagrange.tasks import balanced, make_task  # noqa: E402
-from optim import ce_apg, shac  # noqa: E402
-from optim.apg import episode  # noqa: E402
-from optim.checkpoint import write_json, write_text  # noqa: E402
+from benchmarks._cli import (add_bodies_flag, bodies_marker, bodies_suffix, marked_bodies, outputs,  # noqa: E402
+                             paper_task)
+from lagrange.tasks import balanced  # noqa: E402
+from optim import CEAPGConfig, SHACConfig, episode  # noqa: E402
+from optim.checkpoint import FORMAT as CHECKPOINT_FORMAT, write_json, write_text  # noqa: E402
+from policies import GRUPolicy  # noqa: E402
+from policies.actor_critic import Actor  # noqa: E402
 
 TASKS = ("acrobot", "cartpole", "double_cartpole")
 ALGORITHMS = ("ce_apg", "shac", "ppo", "sac", "brax_apg")
@@ -86,8 +89,8 @@ PAPER = {
 }
 
 FULL = {
-    "ce_apg": {},  # CEAPGConfig.paper(task)
-    "shac": {},  # SHACConfig defaults (the SHAC authors' config), the task's 500-step episodes
+    "ce_apg": {},  # CEAPGConfig.paper(), GRU width 16 (32 on the double cartpole)
+    "shac": {},  # SHACConfig defaults (the SHAC authors' config) and Actor.for_task(task), the task's 500-step episodes
     "ppo": dict(num_timesteps=80_000_000, num_envs=512, batch_size=256, num_minibatches=32, unroll_length=50,
                 num_updates_per_batch=8, discounting=0.99, learning_rate=3e-4, entropy_cost=1e-3,
                 normalize_observations=True, num_evals=20),
@@ -107,7 +110,7 @@ PPO_LAPTOP_STEPS = 1_228_800  # 3 PPO updates of 409,600 steps (the paper: 8e7, 
 
 QUICK = {
     "ce_apg": dict(num_candidates=4, num_elites=2, iterations=3, apg_steps=5, episodes=2),
-    "shac": dict(num_envs=32, epochs=40),
+    "shac": dict(num_envs=32, iterations=40),
     "ppo": dict(num_timesteps=60_000, num_envs=64, batch_size=64, num_minibatches=4, unroll_length=50,
                 num_updates_per_batch=8, discounting=0.99, learning_rate=3e-4, entropy_cost=1e-3,
                 normalize_observations=True, num_evals=3),
@@ -120,7 +123,7 @@ QUICK = {
 # ``per_task`` entries override a budget for one task (merged by :func:`budget_for`).
 LAPTOP = {
     # this project's laptop protocol (benchmarks/paper_tables.py --budget laptop): 1.8e8 steps, hours here
-    "ce_apg": dict(preset="laptop"),  # CEAPGConfig.laptop(task)
+    "ce_apg": dict(preset="laptop"),  # CEAPGConfig.laptop(task), (sin, cos) observations on the acrobot
     "shac": {},  # the SHAC authors' config as in FULL
     "ppo": dict(FULL["ppo"], num_timesteps=PPO_LAPTOP_STEPS, num_evals=4),
     "sac": dict(FULL["sac"]),  # the paper's 2e6 steps
@@ -147,7 +150,7 @@ def budget_for(budgets: dict, algo: str, task: str) -> dict:
 
 class _BraxPolicy:
     """A Brax inference function ``f(obs, key) -> (action, extras)`` with the rollout interface of
-    :func:`optim.apg.episode` (stateless; normalisation is inside the Brax parameters)."""
+    :func:`optim.episode` (stateless; normalisation is inside the Brax parameters)."""
 
     def __init__(self, fn):
         self.fn = fn
@@ -174,17 +177,25 @@ def _evaluate(task, policy, normalizer, seed):
 # one run per algorithm: returns (final returns, balanced flags, curve, env_steps, wall_clock)
 
 
+WIDTH = {"acrobot": 16, "cartpole": 16, "double_cartpole": 32}  # the CE-APG paper's GRU width per task
+
+
 def run_ce_apg(name, seed, budget, bodies="rods"):
     budget = dict(budget)
-    preset = {"paper": ce_apg.CEAPGConfig.paper, "laptop": ce_apg.CEAPGConfig.laptop}[budget.pop("preset", "paper")]
-    cfg = preset(name, bodies=bodies, **budget)
-    trainer = ce_apg.make_trainer(cfg)
+    preset = budget.pop("preset", "paper")
+    if preset == "laptop":  # this project's laptop protocol: (sin, cos) observations on the acrobot
+        cfg = CEAPGConfig.laptop(name, **budget)
+        task = paper_task(name, bodies, **({"trig": True} if name == "acrobot" else {}))
+    else:
+        cfg = CEAPGConfig.paper(**budget)
+        task = paper_task(name, bodies)
+    trainer = cfg.make_trainer(task, GRUPolicy.for_task(task, WIDTH[name]))
     t0 = time.perf_counter()
     state = trainer.init(jax.random.PRNGKey(seed))
     curve, steps = [], 0.0
     for _ in range(cfg.iterations):
         state, _m = trainer.update(state)
-        steps += cfg.env_steps_per_iteration()
+        steps += cfg.env_steps_per_iteration(task.horizon)
         pol, norm = trainer.policy(state, "best")
         rets, _ = _evaluate(trainer.task, pol, norm, seed)
         curve.append((steps, time.perf_counter() - t0, float(rets.mean())))
@@ -193,16 +204,17 @@ def run_ce_apg(name, seed, budget, bodies="rods"):
 
 
 def run_shac(name, seed, budget, bodies="rods"):
-    cfg = shac.SHACConfig(task=name, bodies=bodies, **budget)
-    trainer = shac.make_trainer(cfg)
+    cfg = SHACConfig(**budget)
+    task = paper_task(name, bodies)
+    trainer = cfg.make_trainer(task, Actor.for_task(task))
     t0 = time.perf_counter()
-    every = max(1, cfg.epochs // 10)
+    every = max(1, cfg.iterations // 10)
     state = trainer.init(jax.random.PRNGKey(seed))
     curve, steps = [], 0.0
-    for epoch in range(1, cfg.epochs + 1):
+    for epoch in range(1, cfg.iterations + 1):
         state, _m = trainer.update(state)
         steps += cfg.env_steps_per_epoch()
-        if epoch % every == 0 or epoch == cfg.epochs:
+        if epoch % every == 0 or epoch == cfg.iterations:
             rets, _ = _evaluate(trainer.task, *trainer.policy(state), seed)
             curve.append((steps, time.perf_counter() - t0, float(rets.mean())))
     rets, bal = _evaluate(trainer.task, *trainer.policy(state), seed)
@@ -221,7 +233,7 @@ class Diverged(Exception):
 def _run_brax(kind, name, seed, budget, bodies="rods"):
     from lagrange.interop.brax import BraxEnv, brax_training_compat
 
-    task = make_task(name, bodies)
+    task = paper_task(name, bodies)
     env = BraxEnv(task)
     budget = dict(budget)
     curve = []
@@ -322,9 +334,7 @@ def import_ce_apg(task, seed, src_dir, bodies="rods"):
     curve, kind = [], None
     ckpt = path[:-len(".json")] + ".eqx"
     if os.path.exists(ckpt):
-        from optim import checkpoint
-
-        hist = checkpoint.read_header(ckpt).get("history", [])
+        hist = _checkpoint_history(ckpt)
         curve = [(h["env_steps"], h["elapsed"], h["best_return"]) for h in hist if "best_return" in h]
         kind = "training fitness of the best candidate"
     return {"algo": "ce_apg", "task": task, "seed": seed, "budget": r.get("budget"), "source": path,
@@ -332,6 +342,16 @@ def import_ce_apg(task, seed, src_dir, bodies="rods"):
             "balanced": bool(r["balanced"]), "env_steps": float(r["env_steps"]),
             "wall_clock": float(r["wall_clock_seconds"]), "cpu_seconds": None, "config": r.get("config"),
             "curve": curve, "curve_kind": kind, **bodies_marker(bodies)}
+
+
+def _checkpoint_history(path) -> list:
+    """The ``history`` in the JSON header line of a checkpoint, of any format version: the runs of
+    ``benchmarks/paper_tables.py`` from before ``optim.train`` (version 1) record it as today's do."""
+    with open(path, "rb") as f:
+        head = json.loads(f.readline())
+    if not isinstance(head, dict) or head.get("format") != CHECKPOINT_FORMAT:
+        raise SystemExit(f"{path} is not a lagrange checkpoint")
+    return head.get("history", [])
 
 
 def restore_runs(json_path, runs_dir):
@@ -442,8 +462,8 @@ def _cpu_share(runs):
 
 def _bodies_sentence(results):
     bodies = marked_bodies(results["meta"])
-    return "" if bodies == "rods" else (f" Every run on the tasks' `{bodies}` bodies (`lagrange.tasks.make_task`), "
-                                        "not this library's rods.")
+    return "" if bodies == "rods" else (f" Every run on the tasks' `{bodies}` bodies (`Acrobot.{bodies}()` etc., "
+                                        "`lagrange.tasks`), not this library's rods.")
 
 
 def write_table(results, path):

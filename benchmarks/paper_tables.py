@@ -23,7 +23,8 @@ fields. Writes ``--out/<budget>/results.json`` and ``tables.md`` (mean +- std ov
 balance, the paper's numbers beside ours), and the same as
 ``benchmarks/results/paper_tables_<budget>_{results.json,tables.md}``, from every finished run of the budget
 (``--budget smoke``: under ``runs/benchmarks/``, not published).
-``--set FIELD=VALUE`` (repeatable) changes a field of every selected algorithm's config; such runs need a
+``--set FIELD=VALUE`` (repeatable) changes a field of every selected algorithm's config, or of the task and policy
+it trains (``bodies``, ``horizon``, ``policy``, ``width``, ``trig_observation``: :class:`Protocol`); such runs need a
 ``--variant NAME`` and go to ``--out/<budget>_<NAME>/`` and ``paper_tables_<budget>_<NAME>_*``, apart from the
 budget's own tables. On a fresh clone (no ``--out`` runs yet) the published runs are restored first, so the
 tables keep them and only missing runs are trained.
@@ -43,14 +44,16 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
 
-from benchmarks._cli import outputs  # noqa: E402
-from optim import apg, ce_apg, cem, checkpoint, papg  # noqa: E402
-from optim._loop import comparable_config, run  # noqa: E402
-from optim.apg import evaluate  # noqa: E402
+from benchmarks._cli import outputs, paper_task  # noqa: E402
+from lagrange.tasks import BODY_SETS, PAPER_TASKS  # noqa: E402
+from optim import (APGConfig, AlgorithmConfig, CEAPGConfig, CEMConfig, PAPGConfig, checkpoint, evaluate,  # noqa: E402
+                   train)
+from optim.base import config_to_dict  # noqa: E402
 from optim.checkpoint import write_json, write_text  # noqa: E402
 from optim.devices import cpu_core_count, use_cpu_cores  # noqa: E402
+from policies import GRUPolicy, MLPPolicy  # noqa: E402
 
-TASKS = ("cartpole", "acrobot", "double_cartpole")
+TASKS = ("cartpole", "acrobot", "double_cartpole")  # keys of lagrange.tasks.PAPER_TASKS
 ALGOS = ("ce_apg", "papg", "cem", "apg")
 # Paper Tables I and II (mean +- std over 8 seeds); "Pendulum" in the paper is the cartpole swing-up.
 PAPER = {
@@ -63,41 +66,103 @@ PAPER_NOTE = {"apg": "paper: Brax's APG (stochastic MLP), Table I"}
 EVAL_EPISODES = 16
 
 
-def config(algo: str, task: str, budget: str):
-    width = 32 if task == "double_cartpole" else 16
+WIDTH = {"cartpole": 16, "acrobot": 16, "double_cartpole": 32}  # the paper's GRU width per task
+
+
+@dataclasses.dataclass(frozen=True)
+class Protocol:
+    """One (algorithm, task) protocol: the algorithm's ``config``, and the task and policy it trains, named by the
+    fields a run's result has always recorded (its ``config`` dict, :meth:`record`): the paper task ``task`` on the
+    body set ``bodies`` with episodes of ``horizon`` steps and ``(sin, cos)`` angle observations where
+    ``trig_observation``; the ``policy`` "gru" (``policies.GRUPolicy``) or "mlp" of hidden ``width``.
+    ``--set`` changes these fields as it changes the config's."""
+
+    task: str
+    config: AlgorithmConfig
+    bodies: str = "rods"
+    horizon: int = 500
+    policy: str = "gru"
+    width: int = 16
+    trig_observation: bool = False
+
+    def __post_init__(self):
+        if self.task not in PAPER_TASKS:
+            raise ValueError(f"task must be one of {sorted(PAPER_TASKS)}, got {self.task!r}")
+        if self.bodies not in BODY_SETS:
+            raise ValueError(f"bodies must be one of {list(BODY_SETS)}, got {self.bodies!r}")
+        for name in ("horizon", "width"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+        if self.policy not in ("gru", "mlp"):
+            raise ValueError(f"policy must be 'gru' or 'mlp', got {self.policy!r}")
+        if not isinstance(self.trig_observation, bool):
+            raise ValueError(f"trig_observation must be true or false, got {self.trig_observation!r}")
+        if self.trig_observation and not self._trig_is_field():
+            if getattr(PAPER_TASKS[self.task], "trig", False) is not True:
+                raise ValueError(f"trig_observation: the {self.task} has no (sin, cos) observation layout")
+
+    def _trig_is_field(self) -> bool:
+        """Whether the task's observation layout is a field (else a class constant: the double cartpole's is always
+        (sin, cos), and ``trig_observation`` changes nothing, as it never did)."""
+        return "trig" in {f.name for f in dataclasses.fields(PAPER_TASKS[self.task])}
+
+    def make_task(self):
+        """The task: ``PAPER_TASKS[task].<bodies>(...)`` with the horizon and observation of the protocol."""
+        options = {"trig": True} if self.trig_observation and self._trig_is_field() else {}
+        return paper_task(self.task, self.bodies, horizon=self.horizon, **options)
+
+    def make_policy(self, task):
+        """The policy module (its architecture; the algorithm draws its initial weights from the run's key)."""
+        return (GRUPolicy if self.policy == "gru" else MLPPolicy).for_task(task, self.width)
+
+    def record(self) -> dict:
+        """The protocol as a result's ``config``: the config's fields (``config_to_dict``) with the task and policy
+        fields every result has recorded."""
+        cfg = config_to_dict(self.config)
+        return {"algorithm": cfg.pop("algorithm"), "task": self.task, **cfg, "horizon": self.horizon,
+                "policy": self.policy, "width": self.width, "trig_observation": self.trig_observation,
+                "bodies": self.bodies}
+
+
+SETUP_FIELDS = tuple(f.name for f in dataclasses.fields(Protocol) if f.name not in ("task", "config"))
+SETUP_DEFAULTS = {f.name: f.default for f in dataclasses.fields(Protocol) if f.name in SETUP_FIELDS}
+
+
+def config(algo: str, task: str, budget: str) -> Protocol:
+    """The protocol of ``algo`` on ``task`` under ``budget``."""
+    width = WIDTH[task]
     if budget == "paper":
         if algo == "ce_apg":
-            return ce_apg.CEAPGConfig.paper(task)
+            return Protocol(task, CEAPGConfig.paper(), width=width)
         if algo == "papg":
-            return papg.PAPGConfig(task=task, width=width)
+            return Protocol(task, PAPGConfig(), width=width)
         if algo == "cem":
-            return cem.config(task)
+            return Protocol(task, CEMConfig(), width=width)
         # plain APG with the same interaction count as CE-APG's lineage: 200 x 100 steps of 4 episodes
-        return apg.APGConfig(task=task, width=width, iterations=200, steps_per_iteration=100, learning_rate=1e-3)
+        return Protocol(task, APGConfig(iterations=200, steps_per_iteration=100, learning_rate=1e-3), width=width)
     if budget == "smoke":  # a pipeline check only: a few seconds of training per run
-        small = dict(task=task, width=width, horizon=500, episodes=1, fitness_window=1)
+        small = dict(episodes=1, fitness_window=1)
         if algo == "ce_apg":
-            return ce_apg.CEAPGConfig(num_candidates=4, num_elites=2, iterations=2, apg_steps=2, **small)
-        if algo == "papg":
-            return papg.PAPGConfig(num_runs=4, iterations=2, apg_steps=2, **small)
-        if algo == "cem":
-            return cem.config(task, num_candidates=4, num_elites=2, iterations=2, episodes=1)
-        return apg.APGConfig(task=task, width=width, iterations=2, steps_per_iteration=2, episodes=1)
-    laptop = dict(task=task, width=width, episodes=2, lr_start=1e-2, lr_end=1e-4, trig_observation=task == "acrobot")
+            cfg = CEAPGConfig(num_candidates=4, num_elites=2, iterations=2, apg_steps=2, **small)
+        elif algo == "papg":
+            cfg = PAPGConfig(num_runs=4, iterations=2, apg_steps=2, **small)
+        elif algo == "cem":
+            cfg = CEMConfig(num_candidates=4, num_elites=2, iterations=2, episodes=1)
+        else:
+            cfg = APGConfig(iterations=2, steps_per_iteration=2, episodes=1)
+        return Protocol(task, cfg, width=width)
+    laptop = dict(episodes=2, lr_start=1e-2, lr_end=1e-4)
     if algo == "ce_apg":
-        return ce_apg.CEAPGConfig.laptop(task)
-    if algo == "papg":
-        return papg.PAPGConfig(num_runs=24, iterations=150, apg_steps=25, **laptop)
-    if algo == "cem":
-        return cem.config(task, num_candidates=24, num_elites=6, iterations=2000, episodes=2,
-                          trig_observation=task == "acrobot")
-    return apg.APGConfig(task=task, width=width, iterations=150, steps_per_iteration=25, episodes=2,
-                         learning_rate=3e-3, trig_observation=task == "acrobot")
-
-
-def make_trainer(algo, cfg):
-    return {"ce_apg": ce_apg.make_trainer, "papg": papg.make_trainer, "cem": cem.make_trainer,
-            "apg": apg.make_trainer}[algo](cfg)
+        cfg = CEAPGConfig.laptop(task)
+    elif algo == "papg":
+        cfg = PAPGConfig(num_runs=24, iterations=150, apg_steps=25, **laptop)
+    elif algo == "cem":
+        cfg = CEMConfig(num_candidates=24, num_elites=6, iterations=2000, episodes=2)
+    else:
+        cfg = APGConfig(iterations=150, steps_per_iteration=25, episodes=2, learning_rate=3e-3)
+    # the laptop protocol observes the acrobot's angles as (sin, cos): the wrapped angles kept every run at ~350
+    return Protocol(task, cfg, width=width, trig_observation=task == "acrobot")
 
 
 def parse_value(text: str):
@@ -127,44 +192,68 @@ def parse_overrides(items) -> dict:
     return out
 
 
-def with_overrides(cfg, overrides: dict):
-    """``cfg`` with ``overrides`` replaced (and validated by the config); unknown fields name the allowed ones."""
+def with_overrides(protocol: Protocol, overrides: dict) -> Protocol:
+    """``protocol`` with ``overrides`` replaced (and validated): the task and policy fields of :class:`Protocol`
+    (``bodies``, ``horizon``, ``policy``, ``width``, ``trig_observation``) and the config's; unknown fields name the
+    allowed ones."""
+    cfg = protocol.config
     names = [f.name for f in dataclasses.fields(cfg)]
-    unknown = sorted(set(overrides) - set(names))
+    unknown = sorted(set(overrides) - set(names) - set(SETUP_FIELDS))
     if unknown:
-        raise ValueError(f"--set: {type(cfg).__name__} has no field {', '.join(unknown)}; fields: {', '.join(names)}")
-    return dataclasses.replace(cfg, **overrides)
+        raise ValueError(f"--set: {type(cfg).__name__} has no field {', '.join(unknown)}; fields: "
+                         f"{', '.join(names + list(SETUP_FIELDS))}")
+    setup = {k: v for k, v in overrides.items() if k in SETUP_FIELDS}
+    cfg = dataclasses.replace(cfg, **{k: v for k, v in overrides.items() if k not in SETUP_FIELDS})
+    return dataclasses.replace(protocol, config=cfg, **setup)
 
 
-def one_run(algo, task, seed, budget, cfg, out, progress):
+def one_run(algo, task, seed, budget, protocol: Protocol, out, progress):
     path = os.path.join(out, f"{algo}_{task}_{seed}.json")
     if os.path.exists(path):
         with open(path) as f:
             res = json.load(f)
-        check_same_config(path, res.get("config") or {}, cfg)
+        check_same_config(path, res.get("config") or {}, protocol)
         return res
-    trainer = make_trainer(algo, cfg)
+    env = protocol.make_task()
+    ckpt = os.path.join(out, f"{algo}_{task}_{seed}.eqx")
     t0 = time.perf_counter()
-    state, history = run(trainer, jax.random.PRNGKey(seed), iterations=cfg.iterations,
-                         ckpt_path=os.path.join(out, f"{algo}_{task}_{seed}.eqx"), resume=True, progress=progress,
-                         seed=seed)
-    policy, norm = trainer.policy(state)
+    try:
+        result = train(protocol.config, env, protocol.make_policy(env), jax.random.PRNGKey(seed), checkpoint=ckpt,
+                       resume=True, progress=progress, seed=seed)
+    except checkpoint.CheckpointError as err:  # e.g. a checkpoint of another protocol, or of an older format
+        raise SystemExit(f"cannot resume {ckpt}: {err}. Move it away to retrain the run") from None
+    trainer, history = result.trainer, result.history
+    policy, norm = trainer.policy(result.state)
     rets, bal = jax.jit(lambda k: evaluate(trainer.task, policy, norm, k, EVAL_EPISODES))(
         jax.random.PRNGKey(10_000 + seed))
     res = {"algo": algo, "task": task, "seed": seed, "budget": budget, "return": float(np.mean(rets)),
            "balanced": bool(np.all(bal)), "balanced_fraction": float(np.mean(bal)), "env_steps": history[-1]["env_steps"],
            "wall_clock_seconds": history[-1]["elapsed"], "this_process_seconds": time.perf_counter() - t0,
-           "config": apg.config_to_dict(cfg)}
+           "config": protocol.record()}
     write_json(path, res, indent=2)
     return res
 
 
-def check_same_config(path, saved: dict, cfg) -> None:
-    """A finished run is reused only if it was trained with ``cfg``: after a preset changes, its old runs would
+def comparable_record(protocol: Protocol, saved: dict) -> dict:
+    """``protocol.record()`` to compare with a ``saved`` result's config: a field added since ``saved`` was written
+    (to a config class, or ``bodies``) is left out while it has its default, so older runs stay valid. A CEM run
+    from before :class:`optim.CEMConfig` existed recorded ``"algorithm": "CEAPGConfig"`` (with ``apg_steps`` 0): the
+    same protocol, compared as such."""
+    now = protocol.record()
+    cfg = protocol.config
+    defaults = json.loads(json.dumps({**{f.name: f.default for f in dataclasses.fields(cfg)
+                                         if f.default is not dataclasses.MISSING}, **SETUP_DEFAULTS}))
+    if isinstance(cfg, CEMConfig) and saved.get("algorithm") == "CEAPGConfig" and saved.get("apg_steps") == 0:
+        now["algorithm"] = "CEAPGConfig"
+    return {k: v for k, v in now.items() if k in saved or k not in defaults or v != defaults[k]}
+
+
+def check_same_config(path, saved: dict, protocol: Protocol) -> None:
+    """A finished run is reused only if it was trained with ``protocol``: after a preset changes, its old runs would
     otherwise be tabled as the new protocol. Fields added to the config since are compared only when changed."""
     if not saved:  # a result without its config (none of ours): nothing to compare
         return
-    detail = checkpoint.config_difference(saved, comparable_config(cfg, saved), saved_as="run", now_as="now")
+    detail = checkpoint.config_difference(saved, comparable_record(protocol, saved), saved_as="run", now_as="now")
     if detail:
         raise SystemExit(f"{path} was trained with another config ({detail}). Move it away to retrain it, or give "
                          f"the changed protocol a --variant NAME")
@@ -205,7 +294,8 @@ def main(argv=None):
                    help="where paper_tables_<budget>_{results.json,tables.md} are written (besides OUT/<budget>/; "
                         "default benchmarks/results, runs/benchmarks for --budget smoke)")
     p.add_argument("--set", action="append", metavar="FIELD=VALUE", dest="overrides",
-                   help="change a config field of the selected runs (repeatable; 300,400 is a tuple); needs --variant")
+                   help="change a config field (or bodies, horizon, policy, width, trig_observation) of the selected "
+                        "runs (repeatable; 300,400 is a tuple); needs --variant")
     p.add_argument("--variant", default=None, help="name of a --set protocol: its runs and tables are kept apart")
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--cpu-devices", type=int, default=cpu_core_count(),

@@ -2,7 +2,7 @@
 
 A three-link arm: a heavy upper link, a light middle link and a short forearm; the first two joints
 are motorised (the wrist is passive). Observations, reward and balance criterion are the acrobot's
-(``lagrange.tasks.chain_swingup``).
+(``lagrange.tasks.ChainSwingup``).
 
     python examples/custom_chain.py [--quick] [--seed S] [--iterations N] [--out DIR] [--resume]
 
@@ -10,9 +10,10 @@ Writes runs/custom_chain/{checkpoint.eqx, results.json, learning_curve.png, swin
 """
 
 from lagrange.chain import Chain, Link
-from lagrange.tasks import chain_swingup
-from optim.ce_apg import CEAPGConfig
+from lagrange.tasks import ChainSwingup
+from optim import CEAPGConfig
 from optim.cli import swingup_main
+from policies import GRUPolicy
 
 
 def make_task():
@@ -27,13 +28,14 @@ def make_task():
     )
     # one RK4 step per 0.02 s interval: within 5e-5 of Dopri8 along the trained policy's episodes (|qd| <= 6.4 rad/s);
     # far less accurate past 20 rad/s, where some random candidates go non-finite and are dropped
-    return chain_swingup(chain, dt=0.02, horizon=250)
+    return ChainSwingup(chain, dt=0.02, horizon=250)
 
 
-CONFIG = CEAPGConfig(task="custom", num_candidates=24, num_elites=8, iterations=40, apg_steps=25, episodes=2,
-                     horizon=250, lr_start=1e-2, lr_end=1e-4, init_std=0.15)
-QUICK = CEAPGConfig(task="custom", num_candidates=8, num_elites=3, iterations=8, apg_steps=10, episodes=2,
-                    horizon=250, lr_start=1e-2, lr_end=1e-3, init_std=0.15)
+CONFIG = CEAPGConfig(num_candidates=24, num_elites=8, iterations=40, apg_steps=25, episodes=2, lr_start=1e-2,
+                     lr_end=1e-4, init_std=0.15)
+QUICK = CEAPGConfig(num_candidates=8, num_elites=3, iterations=8, apg_steps=10, episodes=2, lr_start=1e-2,
+                    lr_end=1e-3, init_std=0.15)
 
 if __name__ == "__main__":
-    swingup_main(__doc__.splitlines()[0], "runs/custom_chain", CONFIG, QUICK, task=make_task)
+    swingup_main(__doc__.splitlines()[0], "runs/custom_chain", CONFIG, QUICK, tasks={"custom": make_task},
+                 policy=lambda task: GRUPolicy.for_task(task, width=16))

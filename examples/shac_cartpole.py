@@ -1,11 +1,12 @@
-"""Train SHAC on the SHAC authors' cartpole swing-up, with their hyperparameters.
+"""Train SHAC on the SHAC authors' cartpole swing-up (NVlabs/DiffRL's), with their hyperparameters.
 
     python examples/shac_cartpole.py            # the authors' 500 epochs x 64 envs x 32 steps (about 1e6 steps)
     python examples/shac_cartpole.py --quick    # 150 epochs x 32 envs, a short demo
+    python examples/shac_cartpole.py --resume   # continue an interrupted run
 
-Writes ``results.json`` (deterministic return of the final policy over 16 random starts, the fraction
-that balance, env steps, wall-clock, the config) and ``learning_curve.png`` (deterministic evaluation
-return and the stochastic training episodes' return against simulated steps) to ``--out``.
+Writes ``checkpoint.eqx``, ``results.json`` (deterministic return of the final policy over 16 random starts, the
+fraction that balance, env steps, wall-clock, the config) and ``learning_curve.png`` (deterministic evaluation return
+and the stochastic training episodes' return against simulated steps) to ``--out``.
 """
 
 import argparse
@@ -14,57 +15,57 @@ import os
 
 import jax
 
-from optim import shac
-from optim.checkpoint import write_json
-from optim.cli import shac_learning_curve
+import optim
+from lagrange.tasks import DiffRLCartpole
+from optim.checkpoint import CheckpointError, write_json
+from optim.cli import learning_curve
+from policies import Actor
 
-QUICK = dict(num_envs=32, epochs=150)
+CONFIG = optim.SHACConfig()  # the authors' cartpole swing-up settings
+QUICK = dataclasses.replace(CONFIG, num_envs=32, iterations=150)
 
 
 def main(argv=None) -> dict:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0],
                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("--seed", type=int, default=0, help="PRNG seed of the run")
-    p.add_argument("--epochs", type=int, default=None, help="epochs (default: the config's)")
+    p.add_argument("--iterations", type=int, default=None, help="epochs (default: the config's)")
     p.add_argument("--eval-every", type=int, default=25, help="evaluate the deterministic policy every N epochs")
     p.add_argument("--out", default="runs/shac_cartpole", help="output folder")
-    p.add_argument("--quick", action="store_true", help=f"a short demo run ({QUICK})")
+    p.add_argument("--quick", action="store_true", help="a short demo run (150 epochs x 32 envs)")
+    p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.eqx if it exists")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = p.parse_args(argv)
 
-    cfg = shac.SHACConfig(task="shac_cartpole", **(QUICK if args.quick else {}))
-    if args.epochs is not None:
-        if args.epochs < 1:
-            raise SystemExit(f"--epochs must be >= 1, got {args.epochs}")
-        cfg = dataclasses.replace(cfg, epochs=args.epochs)
-    os.makedirs(args.out, exist_ok=True)
-    trainer = shac.make_trainer(cfg)
-    print(f"SHAC on {cfg.task}: {cfg.epochs} epochs x {cfg.num_envs} envs x {cfg.short_horizon} steps "
-          f"= {cfg.epochs * cfg.env_steps_per_epoch():.2e} env steps; writing to {args.out}")
-    state, history, curve = shac.run(trainer, jax.random.PRNGKey(args.seed), eval_every=args.eval_every,
-                                     eval_key=jax.random.PRNGKey(10_000 + args.seed),
-                                     progress=not args.no_progress)
-    final = curve[-1]
-    results = {
-        "task": cfg.task,
-        "algorithm": "SHAC",
-        "return": final["return"],
-        "return_std": final["return_std"],
-        "balanced_fraction": final["balanced"],
-        "eval_episodes": 16,
-        "untrained_return": curve[0]["return"],
-        "env_steps": history[-1]["env_steps"],
-        "epochs": cfg.epochs,
-        "wall_clock_seconds": history[-1]["elapsed"],
-        "seed": args.seed,
-        "curve": curve,
-        "config": dataclasses.asdict(cfg),
-    }
+    cfg = QUICK if args.quick else CONFIG
+    if args.iterations is not None:
+        if args.iterations < 1:
+            raise SystemExit(f"--iterations must be >= 1, got {args.iterations}")
+        cfg = dataclasses.replace(cfg, iterations=args.iterations)
+    task = DiffRLCartpole.diffrl()
+    actor = Actor.for_task(task, units=(64, 64), init_log_std=-1.0)  # the authors' actor
+    ckpt = os.path.join(args.out, "checkpoint.eqx")
+    if not args.resume and os.path.exists(ckpt):
+        os.remove(ckpt)
+    print(f"SHAC on {task.name}: {cfg.iterations} epochs x {cfg.num_envs} envs x {cfg.short_horizon} steps "
+          f"= {cfg.iterations * cfg.env_steps_per_epoch():.2e} env steps; writing to {args.out}")
+    try:
+        run = optim.train(cfg, task, actor, jax.random.PRNGKey(args.seed), checkpoint=ckpt, resume=args.resume,
+                          seed=args.seed, progress=not args.no_progress, eval_every=args.eval_every,
+                          eval_key=jax.random.PRNGKey(10_000 + args.seed))
+    except CheckpointError as err:
+        raise SystemExit(f"error: cannot resume: {err}") from None
+    final, history = run.curve[-1], run.history
+    results = {"task": task.name, "algorithm": "SHAC", "return": final["return"], "return_std": final["return_std"],
+               "balanced_fraction": final["balanced"], "eval_episodes": 16, "untrained_return": run.curve[0]["return"],
+               "env_steps": history[-1]["env_steps"], "epochs": cfg.iterations,
+               "wall_clock_seconds": history[-1]["elapsed"], "seed": args.seed, "curve": run.curve,
+               "config": dataclasses.asdict(cfg)}
     write_json(os.path.join(args.out, "results.json"), results, indent=2)  # atomically: a kill leaves the old file
-    shac_learning_curve(history, curve, os.path.join(args.out, "learning_curve.png"),
-                        title=f"SHAC on the authors' cartpole swing-up (seed {args.seed})")
+    learning_curve(history, run.curve, os.path.join(args.out, "learning_curve.png"),
+                   title=f"SHAC on the authors' cartpole swing-up (seed {args.seed})")
     print(f"return {final['return']:.1f} +- {final['return_std']:.1f} over 16 episodes (untrained "
-          f"{curve[0]['return']:.0f}), balanced in {final['balanced']:.0%}; {results['env_steps']:.2e} env steps, "
+          f"{run.curve[0]['return']:.0f}), balanced in {final['balanced']:.0%}; {results['env_steps']:.2e} env steps, "
           f"{results['wall_clock_seconds']:.0f} s")
     return results
 

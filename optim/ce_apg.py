@@ -1,87 +1,124 @@
 """Cross-entropy analytic policy gradients (CE-APG), as the authors ran it, sharded over devices.
 
 Each iteration samples candidates ``theta_k = mu + sigma * eps_k`` from a diagonal Gaussian over
-the flat policy parameters, runs ``apg_steps`` Adam steps (fresh Adam state) from each in
+the flat policy parameters, runs ``apg_steps`` Adam steps (fresh Adam state; :func:`optim.apg_steps`) from each in
 parallel (``vmap``; the candidate axis is sharded over every JAX device), scores each by the mean
 of its last ``fitness_window`` batch returns, and refits ``mu`` to the mean of the ``num_elites``
 best post-APG parameters and ``sigma = sqrt(mean_elites (mu_old - theta_elite)^2)``. A candidate
 whose return or gradient goes non-finite gets fitness ``-inf`` (its parameters are frozen at the
 last finite update) and is counted in the metrics.
 
-With ``apg_steps = 0`` the same loop is the plain cross-entropy method (see :mod:`optim.cem`).
+With ``apg_steps = 0`` the same loop is the plain cross-entropy method (:class:`optim.CEMConfig`).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
-from typing import ClassVar, NamedTuple
+from typing import Callable, ClassVar, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax.sharding import NamedSharding, PartitionSpec
+from jaxtyping import Array, Float, Int, PRNGKeyArray
 
-from optim import checkpoint
-from optim.apg import (
-    InnerAPGConfig,
-    Trainer,
-    _check_int,
-    _check_pos,
-    _check_probability,
-    apg_steps,
-    build_policy,
-    build_task,
-    episode,
-    flatten_policy,
-    scan_train,
-)
-from optim.devices import candidate_mesh, jit_replicated
-from policies import Normalizer
+from lagrange.tasks import AbstractTask
+from optim.base import AlgorithmConfig, Trainer
+from optim.bptt import apg_steps, flatten_policy, mean_return_loss
+from optim.devices import jit_replicated, population_mesh
+from optim.episode import episode
+from optim.validate import check_bool, check_int, check_positive, check_probability
+from policies import BraxNormalizer, Normalizer
+
+__all__ = ["InnerAPGConfig", "CEAPGConfig", "CEState", "make_trainer", "log_linear_lr", "training_tasks"]
+
+
+def log_linear_lr(iteration, iterations: int, lr_start: float, lr_end: float):
+    """The CE-APG authors' schedule: ``lr_start^((T - i) / T) * lr_end^(i / T)`` at iteration ``i`` of ``T``; ``lr_end``
+    from ``i = T`` on (a run continued past its planned iterations)."""
+    # clamped as an integer, so the float arithmetic below is the same program as before the clamp existed: the
+    # chaotic swing-up training turns a one-ulp change of the learning rate into a different run
+    frac = jnp.asarray(jnp.minimum(iteration, iterations), jnp.float32) / iterations
+    return jnp.exp((1 - frac) * np.log(lr_start) + frac * np.log(lr_end))
+
+
+@dataclasses.dataclass(frozen=True)
+class InnerAPGConfig(AlgorithmConfig):
+    """The settings of the APG inner loop every population member runs, shared by :class:`CEAPGConfig` and
+    :class:`optim.PAPGConfig` (documented on :class:`CEAPGConfig`): ``iterations`` of ``apg_steps`` Adam steps on
+    ``episodes`` episodes at a log-linear learning rate from ``lr_start`` to ``lr_end``, fitness over the last
+    ``fitness_window`` batch returns."""
+
+    iterations: int = 200
+    apg_steps: int = 100
+    episodes: int = 4
+    lr_start: float = 1e-3
+    lr_end: float = 1e-6
+    fitness_window: int = 5
+    normalize: bool = True
+    truncation: int | None = None
+
+    min_apg_steps: ClassVar[int] = 1  # CE-APG allows 0: the plain cross-entropy method
+
+    def __post_init__(self):
+        c = type(self).__name__
+        check_int(c, "iterations", self.iterations, 1)
+        check_int(c, "apg_steps", self.apg_steps, self.min_apg_steps)
+        check_int(c, "episodes", self.episodes, 1)
+        check_positive(c, "lr_start", self.lr_start)
+        check_positive(c, "lr_end", self.lr_end)
+        check_int(c, "fitness_window", self.fitness_window, 1)
+        check_bool(c, "normalize", self.normalize)
+        if self.truncation is not None:
+            check_int(c, "truncation", self.truncation, 1)
+        if self.apg_steps and self.fitness_window > self.apg_steps:
+            raise ValueError(f"{c}.fitness_window must be <= apg_steps ({self.apg_steps}), got {self.fitness_window}")
+
+    def learning_rate(self, iteration):
+        """Log-linear from ``lr_start`` at iteration 0 to ``lr_end`` at ``iterations`` (constant within one)."""
+        return log_linear_lr(iteration, self.iterations, self.lr_start, self.lr_end)
 
 
 @dataclasses.dataclass(frozen=True)
 class CEAPGConfig(InnerAPGConfig):
-    """CE-APG configuration. ``CEAPGConfig.paper(task)`` is the authors' protocol; the defaults
-    are this project's cheaper acrobot protocol (deviations listed below).
+    """CE-APG settings. The defaults are the authors' protocol (``CEAPGConfig.paper()``); ``CEAPGConfig.laptop(name)``
+    is this project's cheaper one for a paper task. The task and the policy are not settings: they are passed to
+    :func:`optim.train` (the paper's policy is ``policies.GRUPolicy`` of width 16, 32 for the double cartpole).
 
     Fields (paper value in brackets):
-      task: one of ``lagrange.tasks.TASKS`` ["acrobot"].
       num_candidates: candidates sampled per iteration [24].
       num_elites: candidates whose post-APG parameters refit the Gaussian [8].
       iterations: CE iterations [200].
       apg_steps: Adam steps per candidate per iteration, fresh Adam each time [100].
       episodes: random-start episodes per APG step [4].
-      horizon: episode length in control steps [500].
       init_std: initial per-parameter standard deviation; the mean starts at all zeros [0.05].
       lr_start, lr_end: Adam step size, log-linear from ``lr_start`` at iteration 0 to
         ``lr_end`` at iteration ``iterations`` (constant within an iteration) [1e-3, 1e-6].
       fitness_window: fitness = mean of the last ``fitness_window`` batch returns [5].
-      policy, width: "gru" with H = 16 (32 for the double cartpole) [gru, 16].
       normalize: running observation normalisation clipped to +-5 [True].
+      authors_normalizer: the authors' normaliser protocol [True; ``paper()`` sets it; the field's default is
+        False]: ONE :class:`policies.BraxNormalizer` (Brax v1's, from its prior ``m2 = 1``) shared by all
+        candidates, updated once per iteration from one episode of the CE mean (started from candidate 0's key, with
+        the normaliser of the previous iteration) before the candidates run, and frozen through every APG step and
+        the fitness; CEM never updates it. False (this project's laptop protocol): a :class:`policies.Normalizer` per
+        candidate that absorbs every APG batch, the elites' statistics averaged into the next iteration's.
       truncation: truncated-BPTT window, None = whole episode [None].
-      trig_observation: observe (sin th, cos th, dth) instead of wrapped angles [False]; the wrapped
-        first-link angle jumps by 2 pi at every swing through hanging (see ``lagrange.tasks``).
-      bodies: "rods", this library's chains (paper-facts' lengths, thin-rod inertias), or "brax_v1", the bodies the
-        authors' Brax v1 configs describe (every inertia 1 kg m^2; ``lagrange.systems.BRAX_V1``) [the authors' runs:
-        brax_v1; ``paper()`` keeps "rods", the task every other field here is defined on].
       upright_starts: probability that a *training* episode starts balanced upright instead of
         hanging, a curriculum that shows every candidate the balance it must end in [0]. Fitness
-        counts those episodes too; ``Trainer.task`` (what the examples evaluate) keeps the paper's
-        hanging start.
+        counts those episodes too; ``Trainer.task`` (what is evaluated) keeps the task's own start. Needs a task with
+        an ``upright`` field (the swing-ups of :mod:`lagrange.tasks`).
       train_noise: half-width of the uniform noise on the angles and velocities at the start of every *training*
-        episode (warm-up stages included), None = the task's own (+-0.01) [None]. Wider training starts are a
-        robustness knob; ``Trainer.task`` (what the examples and benchmarks evaluate) keeps the task's noise.
+        episode (warm-up stages included), None = the task's own (+-0.01) [None]. Needs a task with a ``noise``
+        field; ``Trainer.task`` keeps the task's noise.
       warmup_horizons, warmup_iterations, warmup_upright: a curriculum of training-episode lengths
         [not in the paper; none]. The first ``len(warmup_horizons) * warmup_iterations`` of the ``iterations`` train
         and score candidates on episodes of ``warmup_horizons[0]``, then ``[1]``, ... control steps
         (``warmup_iterations`` each) that start upright with probability ``warmup_upright``; the
-        rest use ``horizon`` and ``upright_starts``. The learning-rate schedule runs across all
-        iterations. BPTT through 500 steps of an unstable chain does not learn even to balance it
-        from upright (``research/balance_horizon.py``); growing the horizon from 100 steps does.
+        rest use the task's horizon and ``upright_starts``. The learning-rate schedule runs across all iterations.
 
-    The field defaults are the paper's numbers (4.8e6 env steps per iteration, about 1e9 in all).
-    ``CEAPGConfig.laptop(task)`` is the cheaper protocol the examples and ``benchmarks/paper_tables.py
-    --budget laptop`` run (fewer elites, APG steps, episodes and iterations, a larger early learning rate).
+    The field defaults are the paper's numbers, ``authors_normalizer`` aside (4.8e6 env steps per iteration of
+    500-step episodes, about 1e9 in all).
     """
 
     num_candidates: int = 24
@@ -92,28 +129,32 @@ class CEAPGConfig(InnerAPGConfig):
     warmup_horizons: tuple[int, ...] = ()
     warmup_iterations: int = 15
     warmup_upright: float = 1.0
+    authors_normalizer: bool = False
 
-    min_apg_steps: ClassVar[int] = 0  # apg_steps = 0 is the plain cross-entropy method (optim.cem)
+    min_apg_steps: ClassVar[int] = 0  # apg_steps = 0 is the plain cross-entropy method (CEMConfig)
 
     def __post_init__(self):
         super().__post_init__()
         c = type(self).__name__
-        _check_int(c, "num_candidates", self.num_candidates, 1)
-        _check_int(c, "num_elites", self.num_elites, 1)
+        check_int(c, "num_candidates", self.num_candidates, 1)
+        check_int(c, "num_elites", self.num_elites, 1)
         if self.num_elites > self.num_candidates:
             raise ValueError(
                 f"{c}.num_elites must be <= num_candidates ({self.num_candidates}), got {self.num_elites}")
-        _check_pos(c, "init_std", self.init_std, allow_zero=True)
-        _check_probability(c, "upright_starts", self.upright_starts)
+        check_positive(c, "init_std", self.init_std, allow_zero=True)
+        check_probability(c, "upright_starts", self.upright_starts)
         if self.train_noise is not None:
-            _check_pos(c, "train_noise", self.train_noise, allow_zero=True)
+            check_positive(c, "train_noise", self.train_noise, allow_zero=True)
         if isinstance(self.warmup_horizons, (str, bytes)) or not hasattr(self.warmup_horizons, "__iter__"):
             raise ValueError(f"{c}.warmup_horizons must be a sequence of integers >= 1, got {self.warmup_horizons!r}")
         object.__setattr__(self, "warmup_horizons", tuple(self.warmup_horizons))
         for i, h in enumerate(self.warmup_horizons):
-            _check_int(c, f"warmup_horizons[{i}]", h, 1)
-        _check_int(c, "warmup_iterations", self.warmup_iterations, 1)
-        _check_probability(c, "warmup_upright", self.warmup_upright)
+            check_int(c, f"warmup_horizons[{i}]", h, 1)
+        check_int(c, "warmup_iterations", self.warmup_iterations, 1)
+        check_probability(c, "warmup_upright", self.warmup_upright)
+        check_bool(c, "authors_normalizer", self.authors_normalizer)
+        if self.authors_normalizer and not self.normalize:
+            raise ValueError(f"{c}.authors_normalizer needs normalize=True (it is a normaliser protocol)")
         if self.warmup_horizons and self.apg_steps == 0:
             raise ValueError(f"{c}.warmup_horizons needs apg_steps >= 1 (the curriculum shapes the APG gradient), "
                              f"got apg_steps=0")
@@ -122,32 +163,31 @@ class CEAPGConfig(InnerAPGConfig):
                              f"warmup_iterations = {self.warmup_stages * self.warmup_iterations}")
 
     @classmethod
-    def paper(cls, task: str = "acrobot", **overrides) -> "CEAPGConfig":
-        """The authors' protocol for ``task`` (24 x 100 x 4 x 500 env steps per iteration, 200 iterations)."""
-        width = 32 if task == "double_cartpole" else 16
-        return cls(**{"task": task, "width": width, **overrides})
+    def paper(cls, **overrides) -> "CEAPGConfig":
+        """The authors' protocol (24 candidates x 100 APG steps x 4 episodes per iteration, 200 iterations, their
+        normaliser protocol)."""
+        return cls(**{"authors_normalizer": True, **overrides})
 
     @classmethod
-    def laptop(cls, task: str = "acrobot", **overrides) -> "CEAPGConfig":
-        """This project's protocol cut to two CPU cores: the examples' defaults and ``--budget laptop``.
+    def laptop(cls, task: str, **overrides) -> "CEAPGConfig":
+        """This project's protocol for the paper task called ``task``, cut to two CPU cores: the examples' defaults.
 
         Acrobot: 24 candidates, 6 elites (paper 8), 50 APG steps (100) of 2 episodes (4), 150
-        iterations (200), learning rate 1e-2 -> 1e-4 (1e-3 -> 1e-6), ``(sin th, cos th, dth)``
-        observations (the paper's wrapped angles kept every run we tried at ~350): 1.8e8 env steps.
+        iterations (200), learning rate 1e-2 -> 1e-4 (1e-3 -> 1e-6): 1.8e8 env steps; the examples pair it with
+        ``Acrobot(trig=True)`` observations (the paper's wrapped angles kept every run we tried at ~350).
         Cartpole: 8 elites, 25 APG steps of 2 episodes, 120 iterations, 1e-2 -> 1e-4, initial std 0.15:
         7.2e7 env steps. Double cartpole: 8 elites, 25 APG steps of 2 episodes, 150 iterations, 1e-2 -> 1e-4,
-        initial std 0.15, H = 32 (9e7 env steps). Measured results: the docs' "Reproducing the paper".
+        initial std 0.15 (9e7 env steps). Measured results: the docs' "Reproducing the paper".
         """
         if task == "acrobot":
-            base = dict(num_elites=6, iterations=150, apg_steps=50, episodes=2, lr_start=1e-2, lr_end=1e-4,
-                        trig_observation=True)
+            base = dict(num_elites=6, iterations=150, apg_steps=50, episodes=2, lr_start=1e-2, lr_end=1e-4)
         elif task in ("cartpole", "double_cartpole"):
             base = dict(num_elites=8, iterations=120 if task == "cartpole" else 150, apg_steps=25, episodes=2,
-                        lr_start=1e-2, lr_end=1e-4, init_std=0.15, width=32 if task == "double_cartpole" else 16)
+                        lr_start=1e-2, lr_end=1e-4, init_std=0.15)
         else:
-            raise ValueError(f"CEAPGConfig.laptop: task must be one of {sorted(('acrobot', 'cartpole', 'double_cartpole'))}"
-                             f", got {task!r}")
-        return cls(**{"task": task, **base, **overrides})
+            raise ValueError(f"CEAPGConfig.laptop: task must be one of ['acrobot', 'cartpole', 'double_cartpole'], "
+                             f"got {task!r}")
+        return cls(**{**base, **overrides})
 
     def with_iterations(self, iterations: int) -> "CEAPGConfig":
         """The same protocol over ``iterations`` CE iterations. The learning-rate schedule spans ``iterations``
@@ -169,70 +209,97 @@ class CEAPGConfig(InnerAPGConfig):
         ``warmup_horizons[i]``, ``warmup_stages`` on the task itself."""
         return jnp.minimum(iteration // self.warmup_iterations, self.warmup_stages)
 
-    def training_horizon(self, iteration: int) -> int:
-        """Episode length candidates train on at ``iteration`` (0-based): a warm-up horizon, then ``horizon``."""
-        return (*self.warmup_horizons, self.horizon)[int(self.stage(iteration))]
+    def training_horizon(self, iteration: int, horizon: int) -> int:
+        """Episode length candidates train on at ``iteration`` (0-based): a warm-up horizon, then the task's
+        ``horizon``."""
+        return (*self.warmup_horizons, horizon)[int(self.stage(iteration))]
 
-    def env_steps_per_iteration(self, iteration: int | None = None) -> int:
-        """Simulated steps of one iteration (of iteration ``iteration`` when there is a warm-up)."""
-        horizon = self.horizon if iteration is None else self.training_horizon(iteration)
-        return self.num_candidates * max(self.apg_steps, 1) * self.episodes * horizon
+    def env_steps_per_iteration(self, horizon: int, iteration: int | None = None) -> int:
+        """Simulated steps of one iteration on episodes of ``horizon`` steps (of iteration ``iteration`` when there is
+        a warm-up)."""
+        h = horizon if iteration is None else self.training_horizon(iteration, horizon)
+        return self.num_candidates * max(self.apg_steps, 1) * self.episodes * h
 
-    def total_env_steps(self) -> int:
-        return sum(self.env_steps_per_iteration(i) for i in range(self.iterations))
+    def total_env_steps(self, horizon: int) -> int:
+        """Simulated steps of the whole run on a task of ``horizon`` steps."""
+        return sum(self.env_steps_per_iteration(horizon, i) for i in range(self.iterations))
+
+    def make_trainer(self, task: AbstractTask, policy, *, objective: Callable | None = None) -> Trainer:
+        return make_trainer(self, task, policy, objective=objective)
 
 
 class CEState(NamedTuple):
-    """Search distribution ``mean``/``std`` (P,), its normaliser, the best candidate of the last
-    iteration (``best`` (P,) and ``best_normalizer``), the run's raw key and the iteration count."""
+    """CE-APG's training state.
 
-    mean: jax.Array
-    std: jax.Array
+    Attributes:
+        mean, std: the search distribution over the flat parameters, ``(P,)`` each.
+        normalizer: its observation normaliser (None without normalisation).
+        best: the best candidate of the last iteration ``(P,)``, and ``best_normalizer`` its normaliser.
+        key: the run's raw key; iteration ``i`` draws from ``fold_in(key, i)``.
+        iteration: iterations done, ``()`` int32.
+    """
+
+    mean: Float[Array, " P"]
+    std: Float[Array, " P"]
     normalizer: Normalizer | None
-    best: jax.Array
+    best: Float[Array, " P"]
     best_normalizer: Normalizer | None
-    key: jax.Array
-    iteration: jax.Array
+    key: Array
+    iteration: Int[Array, ""]
 
 
-def make_trainer(config: CEAPGConfig, task=None) -> Trainer:
-    """Init/update pair for the host loop; ``update`` runs one jitted CE iteration."""
-    task = build_task(config, task)
-    # episodes the candidates train and are scored on, one task per curriculum stage (the warm-up horizons, then
-    # the full one with upright_starts), all with train_noise; `task` is what the trainer evaluates
+def training_tasks(config: CEAPGConfig, task: AbstractTask) -> list[AbstractTask]:
+    """The tasks candidates train and are scored on, one per curriculum stage: the warm-up horizons (starting upright
+    with probability ``warmup_upright``), then ``task`` itself with ``upright_starts``; all with ``train_noise``."""
+    for name, wanted in (("noise", config.train_noise is not None), ("upright", config.upright_starts > 0
+                                                                        or bool(config.warmup_horizons))):
+        if wanted and not hasattr(task, name):
+            raise ValueError(f"{type(config).__name__}: the curriculum needs a task with a {name!r} field (the "
+                             f"swing-ups of lagrange.tasks); {type(task).__name__} has none. Leave train_noise=None, "
+                             f"upright_starts=0 and warmup_horizons=() for this task")
     noisy = task if config.train_noise is None else dataclasses.replace(task, noise=float(config.train_noise))
     train_task = dataclasses.replace(noisy, upright=config.upright_starts) if config.upright_starts else noisy
-    stage_tasks = [dataclasses.replace(noisy, horizon=h, upright=config.warmup_upright) for h in config.warmup_horizons]
-    stage_tasks.append(train_task)
+    stages = [dataclasses.replace(noisy, horizon=h, upright=config.warmup_upright) for h in config.warmup_horizons]
+    return stages + [train_task]
+
+
+def make_trainer(config: CEAPGConfig, task: AbstractTask, policy, *, objective: Callable | None = None) -> Trainer:
+    """CE-APG on ``task`` over the parameters of ``policy`` (its architecture; the mean starts at zeros, as the
+    authors'); ``update`` runs one jitted CE iteration with the candidates sharded over ``jax.devices()``."""
+    objective = mean_return_loss if objective is None else objective
+    stage_tasks = training_tasks(config, task)
     stage_horizons = jnp.asarray([t.horizon for t in stage_tasks], jnp.float32)
-    stage_steps = jnp.asarray([config.env_steps_per_iteration(i * config.warmup_iterations)
+    stage_steps = jnp.asarray([config.env_steps_per_iteration(task.horizon, i * config.warmup_iterations)
                                for i in range(len(stage_tasks))], jnp.float32)
-    template = build_policy(config, task, jax.random.PRNGKey(0))
-    flat0, unravel = flatten_policy(template)
+    flat0, unravel = flatten_policy(policy)
     P = flat0.size
-    mesh = candidate_mesh(config.num_candidates)
-    ndev = len(mesh.devices)
     K = config.num_candidates
+    mesh = population_mesh(K)
+    ndev = len(mesh.devices)
     Kpad = -(-K // ndev) * ndev  # pad the candidate axis to a multiple of the device count
-    shard = NamedSharding(mesh, PartitionSpec("candidates"))
+    shard = NamedSharding(mesh, PartitionSpec("population"))
     replicated = NamedSharding(mesh, PartitionSpec())
 
-    def init(key) -> CEState:
+    def init(key: PRNGKeyArray) -> CEState:
         mean = jnp.zeros(P, flat0.dtype)
         std = jnp.full(P, config.init_std, flat0.dtype)
-        norm = Normalizer.create(task.observation_size, dtype=flat0.dtype) if config.normalize else None
+        norm = None
+        if config.normalize:
+            make = BraxNormalizer.create if config.authors_normalizer else Normalizer.create
+            norm = make(task.observation_size, dtype=flat0.dtype)
         return CEState(mean, std, norm, mean, norm, jnp.asarray(key), jnp.asarray(0, jnp.int32))
 
     def candidate(stage_task, theta, k, norm, lr):
         if config.apg_steps == 0:
-            policy = unravel(theta)
-            eps = jax.vmap(lambda kk: episode(stage_task, policy, norm, kk))(jax.random.split(k, config.episodes))
-            fit = jnp.mean(eps.ret)
-            if norm is not None:
+            pol = unravel(theta)
+            eps = jax.vmap(lambda kk: episode(stage_task, pol, norm, kk))(jax.random.split(k, config.episodes))
+            fit = -objective(eps)
+            if norm is not None and not config.authors_normalizer:
                 norm = norm.update(eps.obs)
             return theta, norm, jnp.where(jnp.isfinite(fit), fit, -jnp.inf), ~jnp.isfinite(fit), fit
         res = apg_steps(stage_task, unravel, theta, norm, k, steps=config.apg_steps, episodes=config.episodes,
-                        learning_rate=lr, truncation=config.truncation)
+                        learning_rate=lr, truncation=config.truncation, objective=objective,
+                        update_normalizer=not config.authors_normalizer)
         fit = jnp.mean(res.returns[-config.fitness_window:])
         bad = ~res.finite | ~jnp.isfinite(fit)
         return res.params, res.normalizer, jnp.where(bad, -jnp.inf, fit), bad, jnp.mean(res.returns)
@@ -249,6 +316,12 @@ def make_trainer(config: CEAPGConfig, task=None) -> Trainer:
         if Kpad > K:  # padding candidates: copies of the mean, dropped before selection
             thetas = jnp.concatenate([thetas, jnp.broadcast_to(state.mean, (Kpad - K, P))])
             keys = jnp.concatenate([keys, jnp.broadcast_to(keys[:1], (Kpad - K,) + keys.shape[1:])])
+        norm0 = state.normalizer
+        if config.authors_normalizer and config.apg_steps > 0:
+            # the authors': one episode of the CE mean (candidate 0's key, last iteration's statistics) updates the
+            # one shared normaliser before the candidates run with it frozen
+            mean_episode = episode(task, unravel(state.mean), norm0, keys[0])
+            norm0 = norm0.update(mean_episode.obs)
         thetas = jax.lax.with_sharding_constraint(thetas, shard)
         keys = jax.lax.with_sharding_constraint(keys, shard)
         stage = config.stage(state.iteration)
@@ -257,7 +330,7 @@ def make_trainer(config: CEAPGConfig, task=None) -> Trainer:
             return jax.lax.switch(stage, stage_candidates, theta, k, norm, lr)
 
         params, norms, fitness, bad, mean_ret = jax.vmap(run_candidate, in_axes=(0, 0, None, None))(
-            thetas, keys, state.normalizer, lr)
+            thetas, keys, norm0, lr)
         params, fitness, bad, mean_ret = params[:K], fitness[:K], bad[:K], mean_ret[:K]
         params = jax.lax.with_sharding_constraint(params, replicated)
         norms = jax.tree_util.tree_map(lambda x: x[:K], norms)
@@ -266,7 +339,9 @@ def make_trainer(config: CEAPGConfig, task=None) -> Trainer:
         new_mean = jnp.mean(params[elite], axis=0)
         new_std = jnp.sqrt(jnp.mean((state.mean - params[elite]) ** 2, axis=0))
         pick = lambda i: jax.tree_util.tree_map(lambda x: x[i], norms)
-        if norms is not None:
+        if config.authors_normalizer:
+            new_norm = best_norm = norm0
+        elif norms is not None:
             new_norm = jax.tree_util.tree_map(lambda x: jnp.mean(x[elite], axis=0), norms)
             best_norm = pick(order[0])
         else:
@@ -285,34 +360,13 @@ def make_trainer(config: CEAPGConfig, task=None) -> Trainer:
         new = CEState(new_mean, new_std, new_norm, params[order[0]], best_norm, state.key, state.iteration + 1)
         return new, metrics
 
-    def policy(state: CEState, which: str = "best"):
+    def policy_of(state: CEState, which: str = "best"):
         """``(policy, normalizer)`` for the best candidate of the last iteration, or the CE ``"mean"``."""
         if which == "mean":
             return unravel(state.mean), state.normalizer
+        if which != "best":
+            raise ValueError(f"which must be 'best' or 'mean', got {which!r}")
         return unravel(state.best), state.best_normalizer
 
-    return Trainer(init, jit_replicated(update, replicated), policy, task, config)
-
-
-def make_train(config: CEAPGConfig, task=None):
-    """``train(key) -> (final CEState, per-iteration metrics)``: the whole run as one jittable function."""
-    return scan_train(make_trainer(config, task), config.iterations)
-
-
-def load_checkpoint(path, task=None) -> tuple[Trainer, CEState]:
-    """``(trainer, state)`` from a CE-APG checkpoint, its config read from the file's header (no config needed).
-
-    ``task`` is required for a ``task="custom"`` config, as for :func:`make_trainer`. Raises
-    :class:`optim.checkpoint.CheckpointError` for a checkpoint of another algorithm or a corrupt one."""
-    saved = dict(checkpoint.read_header(path)["config"])
-    algorithm = saved.pop("algorithm", None)
-    if algorithm != CEAPGConfig.__name__:
-        raise checkpoint.CheckpointError(f"{path} is not a CE-APG checkpoint (its config's algorithm is {algorithm!r})")
-    names = {f.name for f in dataclasses.fields(CEAPGConfig)}
-    unknown = sorted(set(saved) - names)
-    if unknown:
-        raise checkpoint.CheckpointError(f"{path} has config fields this CEAPGConfig does not know: {unknown}")
-    config = CEAPGConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in saved.items()})
-    trainer = make_trainer(config, task)
-    state, _ = checkpoint.load(path, trainer.init(jax.random.PRNGKey(0)))
-    return trainer, state
+    return Trainer(init, jit_replicated(update, replicated), policy_of, task, config,
+                   ("best_return", "elite_return", "mean_return"))

@@ -16,7 +16,9 @@ import tempfile
 import equinox as eqx
 
 FORMAT = "lagrange-checkpoint"
-VERSION = 1
+VERSION = 2
+"""Version 2: one format for every algorithm (header with ``config``, ``identity`` of the task and policy, ``seed``,
+``history``, ``curve``). Version 1 (CE-APG/PAPG/APG before the unified trainer) is refused."""
 
 
 class CheckpointError(ValueError):
@@ -79,8 +81,9 @@ def read_header(path) -> dict:
     if not isinstance(head, dict) or head.get("format") != FORMAT:
         raise CheckpointError(f"{path} is not a lagrange checkpoint (header format is {head!r:.80})")
     if head.get("version") != VERSION:
-        raise CheckpointError(f"{path} has checkpoint format version {head.get('version')!r}; "
-                              f"this code reads version {VERSION}")
+        raise CheckpointError(f"{path} has checkpoint format version {head.get('version')!r}; this code reads version "
+                              f"{VERSION} (one format for every algorithm, written by optim.train). Start the run "
+                              f"afresh, or read it with the code that wrote it")
     return head
 
 

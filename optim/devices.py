@@ -3,7 +3,7 @@
 XLA's CPU backend runs one device's program on a thread pool, but a CE-APG iteration is a long sequential scan of
 small batched operations that that pool barely parallelises: on two cores one device keeps about one core busy.
 Splitting the host into one device per core and sharding the candidate axis over them (which
-:func:`optim.ce_apg.make_trainer` already does for any device count) runs the candidates on every core. Measured on
+every algorithm of :mod:`optim` does for any device count) runs the candidates on every core. Measured on
 the project's 2-core machine, acrobot, 24 candidates x 10 APG steps x 2 episodes x 500 steps: 0.80 s per iteration
 on one device, 0.36 s on two, 0.43 s on four, 0.58 s on eight. One iteration equals the single-device result to
 round-off (``tests/optim/test_devices.py::test_sharded_equals_single_device``); over a long run chaotic training
@@ -18,7 +18,7 @@ from __future__ import annotations
 import os
 import warnings
 
-__all__ = ["use_cpu_cores", "cpu_core_count", "candidate_mesh", "jit_replicated"]
+__all__ = ["use_cpu_cores", "cpu_core_count", "population_mesh", "shard_count", "jit_replicated"]
 
 
 def cpu_core_count() -> int:
@@ -54,14 +54,26 @@ def use_cpu_cores(n: int | None = None) -> int:
     return n
 
 
-def candidate_mesh(num_candidates: int):
-    """A 1-D ``"candidates"`` mesh over at most ``num_candidates`` of ``jax.devices()``: more devices than candidates
-    would only run padding candidates."""
+def population_mesh(size: int, *, divides: bool = False):
+    """A 1-D ``"population"`` mesh over at most ``size`` of ``jax.devices()`` (every device JAX sees: the CPU devices of
+    :func:`use_cpu_cores`, the GPUs, or every host's devices after ``jax.distributed.initialize()``); more devices
+    than population members (candidates, runs, environments) would only run padding. With ``divides`` the device
+    count is the largest that divides ``size`` (a population that is not padded)."""
     import jax
     import numpy as np
     from jax.sharding import Mesh
 
-    return Mesh(np.asarray(jax.devices()[:max(1, num_candidates)]), ("candidates",))
+    return Mesh(np.asarray(jax.devices()[:shard_count(size, divides=divides)]), ("population",))
+
+
+def shard_count(size: int, *, divides: bool = False) -> int:
+    """How many devices a population of ``size`` members is sharded over (:func:`population_mesh`)."""
+    import jax
+
+    n = min(len(jax.devices()), max(1, size))
+    while divides and size % n:
+        n -= 1
+    return n
 
 
 def jit_replicated(update, replicated):

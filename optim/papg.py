@@ -1,64 +1,77 @@
 """Parallel APG (the paper's ablation): ``num_runs`` independent APG runs, keep the best.
 
-Each run starts from its own random policy initialisation and takes ``apg_steps`` Adam steps per
-host iteration with a fresh Adam state every iteration and the same log-linear learning-rate
-schedule as CE-APG (so that ``iterations x apg_steps`` matches CE-APG's interaction count, as in
-the paper). Runs are ``vmap``-ed and sharded over devices exactly like CE-APG candidates; the
-result is the run with the best fitness (mean of its last ``fitness_window`` batch returns).
+Each run starts from its own random policy initialisation (``policy.reinit``) and takes ``apg_steps`` Adam steps per
+host iteration with a fresh Adam state every iteration and the same log-linear learning-rate schedule as CE-APG (so
+that ``iterations x apg_steps`` matches CE-APG's interaction count, as in the paper). Runs are ``vmap``-ed and sharded
+over devices exactly like CE-APG candidates; the result is the run with the best fitness (mean of its last
+``fitness_window`` batch returns).
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
 from jax.sharding import NamedSharding, PartitionSpec
+from jaxtyping import Array, Float, Int, PRNGKeyArray
 
-from optim.apg import (InnerAPGConfig, Trainer, _check_int, apg_steps, build_policy, build_task, flatten_policy,
-                       scan_train)
-from optim.devices import candidate_mesh, jit_replicated
+from lagrange.tasks import AbstractTask
+from optim.base import Trainer
+from optim.bptt import apg_steps, flatten_policy, mean_return_loss
+from optim.ce_apg import InnerAPGConfig
+from optim.devices import jit_replicated, population_mesh
+from optim.validate import check_int
 from policies import Normalizer
+
+__all__ = ["PAPGConfig", "PAPGState", "make_trainer"]
 
 
 @dataclasses.dataclass(frozen=True)
 class PAPGConfig(InnerAPGConfig):
-    """Fields as in :class:`optim.ce_apg.CEAPGConfig` (the shared ones in :class:`optim.apg.InnerAPGConfig`);
-    ``num_runs`` independent runs [24]."""
+    """Fields as in :class:`optim.CEAPGConfig` (the shared ones in :class:`optim.ce_apg.InnerAPGConfig`);
+    ``num_runs`` independent runs [24], a multiple of the device count."""
 
     num_runs: int = 24
 
     def __post_init__(self):
         super().__post_init__()
-        _check_int(type(self).__name__, "num_runs", self.num_runs, 1)
+        check_int(type(self).__name__, "num_runs", self.num_runs, 1)
 
-    def env_steps_per_iteration(self) -> int:
-        return self.num_runs * self.apg_steps * self.episodes * self.horizon
+    def env_steps_per_iteration(self, horizon: int) -> int:
+        return self.num_runs * self.apg_steps * self.episodes * horizon
+
+    def make_trainer(self, task: AbstractTask, policy, *, objective: Callable | None = None) -> Trainer:
+        return make_trainer(self, task, policy, objective=objective)
 
 
 class PAPGState(NamedTuple):
-    params: jax.Array  # (num_runs, P)
-    normalizers: Normalizer | None  # leaves with a leading num_runs axis
-    fitness: jax.Array  # (num_runs,)
-    key: jax.Array
-    iteration: jax.Array
+    """PAPG's training state: every run's parameters ``(num_runs, P)``, normalisers (leaves with a leading
+    ``num_runs`` axis), last fitness ``(num_runs,)``, the run's key and the iteration count."""
+
+    params: Float[Array, "runs P"]
+    normalizers: Normalizer | None
+    fitness: Float[Array, " runs"]
+    key: Array
+    iteration: Int[Array, ""]
 
 
-def make_trainer(config: PAPGConfig, task=None) -> Trainer:
-    task = build_task(config, task)
-    _, unravel = flatten_policy(build_policy(config, task, jax.random.PRNGKey(0)))
+def make_trainer(config: PAPGConfig, task: AbstractTask, policy, *, objective: Callable | None = None) -> Trainer:
+    """PAPG on ``task``; each run starts from ``policy.reinit(k)`` for its own key ``k``."""
+    objective = mean_return_loss if objective is None else objective
+    _, unravel = flatten_policy(policy)
     N = config.num_runs
-    mesh = candidate_mesh(N)
+    mesh = population_mesh(N)
     ndev = len(mesh.devices)
     if N % ndev:
         raise ValueError(f"PAPGConfig.num_runs ({N}) must be a multiple of the device count ({ndev})")
-    shard = NamedSharding(mesh, PartitionSpec("candidates"))
+    shard = NamedSharding(mesh, PartitionSpec("population"))
     replicated = NamedSharding(mesh, PartitionSpec())
 
-    def init(key) -> PAPGState:
+    def init(key: PRNGKeyArray) -> PAPGState:
         keys = jax.random.split(jax.random.fold_in(key, 0x5EED), N)
-        params = jax.vmap(lambda k: flatten_policy(build_policy(config, task, k))[0])(keys)
+        params = jax.vmap(lambda k: flatten_policy(policy.reinit(k))[0])(keys)
         norm = Normalizer.create(task.observation_size, dtype=params.dtype) if config.normalize else None
         norms = jax.tree_util.tree_map(lambda x: jnp.broadcast_to(x, (N,) + x.shape), norm)
         return PAPGState(params, norms, jnp.full(N, -jnp.inf, params.dtype), jnp.asarray(key),
@@ -72,7 +85,7 @@ def make_trainer(config: PAPGConfig, task=None) -> Trainer:
 
         def run(p, norm, k):
             res = apg_steps(task, unravel, p, norm, k, steps=config.apg_steps, episodes=config.episodes,
-                            learning_rate=lr, truncation=config.truncation)
+                            learning_rate=lr, truncation=config.truncation, objective=objective)
             fit = jnp.mean(res.returns[-config.fitness_window:])
             bad = ~res.finite | ~jnp.isfinite(fit)
             return res.params, res.normalizer, jnp.where(bad, -jnp.inf, fit), bad
@@ -84,18 +97,17 @@ def make_trainer(config: PAPGConfig, task=None) -> Trainer:
             "mean_return": jnp.sum(jnp.where(finite, fit, 0.0)) / jnp.maximum(jnp.sum(finite), 1),
             "nonfinite": jnp.sum(bad),
             "learning_rate": lr,
-            "env_steps": jnp.asarray(config.env_steps_per_iteration(), jnp.float32),
+            "env_steps": jnp.asarray(config.env_steps_per_iteration(task.horizon), jnp.float32),
         }
         return PAPGState(p, norms, fit, state.key, state.iteration + 1), metrics
 
-    def policy(state: PAPGState, which: str = "best"):
+    def policy_of(state: PAPGState, which: str = "best"):
+        """``(policy, normalizer)`` of the run with the best fitness (``which`` is accepted for the common interface;
+        PAPG has no mean)."""
+        if which != "best":
+            raise ValueError(f"PAPG has only its best run: which must be 'best', got {which!r}")
         i = jnp.argmax(state.fitness)
         norm = jax.tree_util.tree_map(lambda x: x[i], state.normalizers)
         return unravel(state.params[i]), norm
 
-    return Trainer(init, jit_replicated(update, replicated), policy, task, config)
-
-
-def make_train(config: PAPGConfig, task=None):
-    """``train(key) -> (final state, per-iteration metrics)``: the whole run as one jittable function."""
-    return scan_train(make_trainer(config, task), config.iterations)
+    return Trainer(init, jit_replicated(update, replicated), policy_of, task, config)

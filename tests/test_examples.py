@@ -85,9 +85,9 @@ def test_quick_run_writes_every_artefact(tmp_path):
     for field in ("return", "balanced", "env_steps", "wall_clock_seconds", "seed", "config"):
         assert field in res, field
     assert res["seed"] == 3 and res["iterations"] == 1
-    assert res["config"]["algorithm"] == "CEAPGConfig" and res["config"]["task"] == "acrobot"
+    assert res["config"]["algorithm"] == "CEAPGConfig" and res["task"] == "acrobot" and res["bodies"] == "rods"
     cfg = res["config"]
-    assert res["env_steps"] == cfg["num_candidates"] * cfg["apg_steps"] * cfg["episodes"] * cfg["horizon"]
+    assert res["env_steps"] == cfg["num_candidates"] * cfg["apg_steps"] * cfg["episodes"] * res["horizon"]
     assert isinstance(res["balanced"], bool)
     # the shipped policy is chosen on selection episodes, not on the reported ones
     assert set(res["selection_returns"]) == {"best", "mean"}
@@ -112,7 +112,7 @@ def test_shac_example_runs_and_writes_its_results(tmp_path):
     """examples/shac_cartpole.py end to end on two epochs (it once crashed at its evaluation: the SHAC cartpole
     lacked the ``first_pole`` that ``balanced`` reads)."""
     env = dict(os.environ, MPLBACKEND="Agg")
-    proc = subprocess.run([sys.executable, os.path.join(ROOT, "examples", "shac_cartpole.py"), "--epochs", "2",
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "examples", "shac_cartpole.py"), "--iterations", "2",
                            "--eval-every", "1", "--out", str(tmp_path), "--no-progress"],
                           capture_output=True, text=True, env=env, timeout=900)
     assert proc.returncode == 0, proc.stderr[-3000:]

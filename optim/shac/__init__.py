@@ -27,16 +27,16 @@ Actor and critic are MLPs ``[64, 64]`` of Linear -> ELU -> LayerNorm; the actor'
 default (PyTorch-style uniform) initialisation and the critic's are orthogonal with gain sqrt(2) and
 zero biases, as in the authors' code.
 
+Train it with :func:`optim.train` (``SHACConfig`` is its config; the actor, a :class:`policies.Actor`, is passed as
+the policy); the environments are sharded over every device.
+
 Differences from the authors' code: a non-finite actor or critic gradient skips that update (and is
 counted in the metrics) instead of raising; the running-statistics prior is a count of 0 (theirs 1e-4);
 the episode return reported during training is that of the stochastic policy, as theirs.
 """
 
-from optim.shac.config import TASKS_SHAC, SHACConfig, make_task
+from optim.shac.config import SHACConfig
 from optim.shac.losses import actor_loss, soft_update, td_lambda_targets
-from optim.shac.loop import run
-from optim.shac.trainer import SHACState, Trainer, make_train, make_trainer
-from policies.actor_critic import Actor, Critic, DeterministicPolicy
+from optim.shac.trainer import SHACState, make_trainer
 
-__all__ = ["SHACConfig", "SHACState", "Trainer", "Actor", "Critic", "DeterministicPolicy", "make_trainer", "make_train",
-           "td_lambda_targets", "soft_update", "actor_loss", "TASKS_SHAC", "make_task", "run"]
+__all__ = ["SHACConfig", "SHACState", "make_trainer", "td_lambda_targets", "soft_update", "actor_loss"]

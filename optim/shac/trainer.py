@@ -1,20 +1,24 @@
-"""SHAC's trainer: ``make_trainer(config) -> init/update`` (one jitted epoch) and ``make_train(config) -> train(key)``."""
+"""SHAC's trainer: ``make_trainer(config, task, actor) -> Trainer`` (``update`` is one jitted epoch, the environments
+sharded over every device)."""
 
 from __future__ import annotations
 
-import dataclasses
-from typing import Any, Callable, NamedTuple
+from typing import Any, NamedTuple
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import optax
+from jax.sharding import NamedSharding, PartitionSpec
 
-from lagrange.tasks import TaskState, balanced
-from optim.shac.config import SHACConfig, make_task
+from lagrange.tasks import AbstractTask, TaskState
+from optim.base import Trainer
+from optim.devices import jit_replicated, population_mesh
 from optim.shac.losses import actor_loss, clip_grad_norm, soft_update, td_lambda_targets
 from policies import Normalizer
 from policies.actor_critic import Actor, Critic, DeterministicPolicy
+
+__all__ = ["SHACState", "make_trainer"]
 
 
 class SHACState(NamedTuple):
@@ -31,39 +35,21 @@ class SHACState(NamedTuple):
     iteration: jax.Array  # () int32, epochs done
 
 
-class Trainer(NamedTuple):
-    """``init(key) -> state``, ``update(state) -> (state, metrics)`` (one jitted epoch),
-    ``policy(state) -> (DeterministicPolicy, normalizer)``, ``evaluate(state, key, episodes) ->
-    (returns, balanced)``, the task and the config."""
-
-    init: Callable
-    update: Callable
-    policy: Callable
-    evaluate: Callable
-    task: Any
-    config: SHACConfig
-
-
-def _build_task(config: SHACConfig, task):
-    if task is None:
-        if config.task == "custom":
-            raise ValueError("SHACConfig.task is 'custom': pass the task to make_trainer(config, task)")
-        task = make_task(config.task, config.bodies)
-    if config.horizon is not None and config.horizon != task.horizon:
-        task = dataclasses.replace(task, horizon=config.horizon)
-    return task
-
-
 def _normalizer(size, dtype):
     # The authors' RunningMeanStd: (x - mean) / sqrt(var + 1e-5), no clipping.
     return Normalizer(jnp.zeros(size, dtype), jnp.ones(size, dtype), jnp.zeros((), dtype), clip=float("inf"),
                       eps=1e-5)
 
 
-def make_trainer(config: SHACConfig, task=None) -> Trainer:
-    """Init/update pair of SHAC on ``task`` (default: ``config.task``); ``update`` is one jitted epoch."""
-    task = _build_task(config, task)
+def make_trainer(config, task: AbstractTask, actor: Actor) -> Trainer:
+    """SHAC on ``task`` with the settings ``config`` (an :class:`optim.SHACConfig`); the actor starts from ``actor.reinit(k)`` for a key ``k`` drawn from the run's key.
+    ``update`` is one jitted epoch; the environments are sharded over the largest number of ``jax.devices()`` that
+    divides ``num_envs``."""
+    if not isinstance(actor, Actor):
+        raise TypeError(f"SHAC trains a stochastic policies.Actor, got {type(actor).__name__}")
     N, h, T = config.num_envs, config.short_horizon, task.horizon
+    mesh = population_mesh(N, divides=True)
+    replicated = NamedSharding(mesh, PartitionSpec())
     adam = optax.scale_by_adam(b1=config.adam_b1, b2=config.adam_b2, eps=config.adam_eps)
     obs_size = task.observation_size
     B = N * h
@@ -74,11 +60,11 @@ def make_trainer(config: SHACConfig, task=None) -> Trainer:
     def init(key) -> SHACState:
         k_actor, k_critic, k_env = jax.random.split(jax.random.fold_in(key, 0x5EED), 3)
         dtype = jnp.result_type(task.chain.mass)
-        actor = Actor(obs_size, task.action_size, config.actor_units, config.init_log_std, key=k_actor, dtype=dtype)
+        actor0 = actor.reinit(k_actor)
         critic = Critic(obs_size, config.critic_units, key=k_critic, dtype=dtype)
         env_state = jax.vmap(task.reset)(jax.random.split(k_env, N))
         norm = _normalizer(obs_size, dtype) if config.normalize else None
-        return SHACState(actor, critic, critic, adam.init(eqx.filter(actor, eqx.is_array)),
+        return SHACState(actor0, critic, critic, adam.init(eqx.filter(actor0, eqx.is_array)),
                          adam.init(eqx.filter(critic, eqx.is_array)), norm, env_state,
                          jnp.zeros(N, jnp.int32), jnp.zeros(N, dtype), jnp.asarray(key), jnp.asarray(0, jnp.int32))
 
@@ -88,6 +74,10 @@ def make_trainer(config: SHACConfig, task=None) -> Trainer:
     def update(state: SHACState):
         key = jax.random.fold_in(state.key, state.iteration)
         actor_lr, critic_lr = config.learning_rates(state.iteration)
+        env = lambda x: jax.lax.with_sharding_constraint(x, NamedSharding(mesh, PartitionSpec("population",
+                                                                                     *([None] * (x.ndim - 1)))))
+        state = state._replace(env_state=jax.tree_util.tree_map(env, state.env_state), progress=env(state.progress),
+                               ep_return=env(state.ep_return))
 
         # 1. actor: one clipped Adam step on the window's loss
         def loss_fn(actor):
@@ -165,25 +155,11 @@ def make_trainer(config: SHACConfig, task=None) -> Trainer:
                         ep_return, state.key, state.iteration + 1)
         return new, metrics
 
-    def policy(state: SHACState):
+    def policy_of(state: SHACState, which: str = "best"):
+        """``(DeterministicPolicy(actor), normalizer)``: ``tanh`` of the actor's mean."""
+        if which != "best":
+            raise ValueError(f"SHAC has one policy: which must be 'best', got {which!r}")
         return DeterministicPolicy(state.actor), state.normalizer
 
-    def evaluate(state: SHACState, key, episodes: int):
-        """Deterministic returns (episodes,) and balanced flags (episodes,) from ``episodes`` random starts."""
-        from optim.apg import episode
-
-        pol, norm = policy(state)
-        eps = jax.vmap(lambda k: episode(task, pol, norm, k))(jax.random.split(key, episodes))
-        return eps.ret, balanced(task, eps.q)
-
-    return Trainer(init, eqx.filter_jit(update), policy, eqx.filter_jit(evaluate), task, config)
-
-
-def make_train(config: SHACConfig, task=None):
-    """``train(key) -> (final SHACState, per-epoch metrics)``: the whole run as one jittable function."""
-    trainer = make_trainer(config, task)
-
-    def train(key):
-        return jax.lax.scan(lambda s, _: trainer.update(s), trainer.init(key), None, config.epochs)
-
-    return train
+    return Trainer(init, jit_replicated(update, replicated), policy_of, task, config,
+                   ("episode_return", "value_loss"))

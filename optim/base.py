@@ -1,0 +1,91 @@
+"""What every training algorithm is: a typed config of settings, and a :class:`Trainer` of pure functions over a state.
+
+An algorithm's config (:class:`AlgorithmConfig`) holds its settings only; :meth:`AlgorithmConfig.make_trainer` takes the
+task and the policy as objects and returns the :class:`Trainer`: ``init(key) -> state`` and ``update(state) -> (state,
+metrics)`` (one jitted iteration, randomness from ``fold_in(key, iteration)``), in the manner of optax's
+``init``/``update`` pairs and purejaxrl's training functions. :func:`optim.train` is the one host loop that runs any
+of them; :func:`scan_train` runs one as a single jittable function.
+"""
+
+from __future__ import annotations
+
+import abc
+import dataclasses
+import json
+from typing import Any, Callable, NamedTuple
+
+import jax
+
+__all__ = ["AlgorithmConfig", "Trainer", "scan_train", "config_to_dict"]
+
+
+class Trainer(NamedTuple):
+    """An algorithm bound to a task and a policy.
+
+    Attributes:
+        init: ``init(key) -> state``; the state holds the run's key and its ``iteration`` count.
+        update: ``update(state) -> (state, metrics)``, one jitted iteration; ``metrics`` is a dict of scalars with
+            at least ``env_steps`` (simulated control steps of the iteration) and ``nonfinite`` (updates skipped).
+        policy: ``policy(state, which="best") -> (policy module, normaliser or None)``, the deterministic policy to
+            evaluate (``which="mean"``: the search distribution's mean, for the CE methods).
+        task: the task it trains on.
+        config: its :class:`AlgorithmConfig`.
+        summary: the metrics the progress bar shows.
+    """
+
+    init: Callable
+    update: Callable
+    policy: Callable
+    task: Any
+    config: "AlgorithmConfig"
+    summary: tuple[str, ...] = ("best_return", "mean_return")
+
+
+class AlgorithmConfig(abc.ABC):
+    """Base of the algorithms' configs (frozen dataclasses of settings; every one has ``iterations``)."""
+
+    iterations: int
+
+    @abc.abstractmethod
+    def make_trainer(self, task, policy, *, objective: Callable | None = None) -> Trainer:
+        """The :class:`Trainer` of this algorithm on ``task`` with ``policy`` (a module: its architecture; the
+        algorithm draws the initial weights from the run's key). ``objective``: the loss of an episode batch for the
+        algorithms built on :func:`optim.apg_steps` (default: minus the mean return)."""
+
+
+def config_to_dict(cfg: AlgorithmConfig) -> dict:
+    """The config as the JSON a checkpoint header stores (tuples become lists), so it compares equal after a round
+    trip; ``algorithm`` names its class."""
+    return json.loads(json.dumps({"algorithm": type(cfg).__name__, **dataclasses.asdict(cfg)}))
+
+
+def config_from_dict(saved: dict) -> AlgorithmConfig:
+    """The config a checkpoint header stored (:func:`config_to_dict`); raises ``ValueError`` naming what is unknown."""
+    saved = dict(saved)
+    name = saved.pop("algorithm", None)
+    classes = {c.__name__: c for c in _subclasses(AlgorithmConfig)}
+    if name not in classes:
+        raise ValueError(f"unknown algorithm {name!r}; known: {sorted(classes)}")
+    cls = classes[name]
+    fields = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(saved) - fields)
+    if unknown:
+        raise ValueError(f"config fields {unknown} are not fields of {name}")
+    return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in saved.items()})
+
+
+def _subclasses(cls):
+    for sub in cls.__subclasses__():
+        yield sub
+        yield from _subclasses(sub)
+
+
+def scan_train(trainer: Trainer, iterations: int | None = None):
+    """``train(key) -> (final state, stacked metrics)``: ``iterations`` (default: the config's) of ``trainer.update``
+    as one jittable function, for ``jax.vmap`` over seeds or a run without a host loop."""
+    iterations = trainer.config.iterations if iterations is None else iterations
+
+    def train(key):
+        return jax.lax.scan(lambda s, _: trainer.update(s), trainer.init(key), None, iterations)
+
+    return train

@@ -1,0 +1,73 @@
+"""Rollouts of a policy on a task: one episode, and the deterministic evaluation every algorithm reports."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float, PRNGKeyArray
+
+from lagrange.tasks import AbstractTask, balanced
+from policies import Normalizer
+
+__all__ = ["Episode", "episode", "evaluate"]
+
+
+class Episode(NamedTuple):
+    """One rollout of ``T = task.horizon`` control steps.
+
+    Attributes:
+        ret: total return, shape ``()``.
+        rewards: reward of each step, shape ``(T,)``.
+        obs: the raw (unnormalised) observation the policy saw at each step, shape ``(T, obs_size)``.
+        actions: the policy's actions in ``[-1, 1]``, shape ``(T, m)``.
+        q: coordinates from the start state on, shape ``(T + 1, n)`` (rad; m for a cart).
+        qd: velocities, shape ``(T + 1, n)`` (rad/s; m/s for a cart).
+    """
+
+    ret: Float[Array, ""]
+    rewards: Float[Array, " T"]
+    obs: Float[Array, "T obs"]
+    actions: Float[Array, "T m"]
+    q: Float[Array, "T1 n"]
+    qd: Float[Array, "T1 n"]
+
+
+def episode(task: AbstractTask, policy, normalizer: Normalizer | None, key: PRNGKeyArray, *,
+            truncation: int | None = None) -> Episode:
+    """Roll ``policy`` out for ``task.horizon`` steps from ``task.reset(key)``.
+
+    ``policy(obs, hidden, reset) -> (action, hidden)`` (a :class:`policies.GRUPolicy`, :class:`policies.MLPPolicy` or
+    :class:`policies.DeterministicPolicy`); it sees ``normalizer(obs)`` when a normaliser is given. The hidden state
+    starts at zeros and is reset at step 0. With ``truncation = k`` the gradient through the state is cut every
+    ``k`` steps (truncated BPTT). Unbatched: ``jax.vmap`` it over keys.
+    """
+    s0 = task.reset(key)
+    h0 = policy.initial_state()
+
+    def body(carry, t):
+        s, h = carry
+        obs = task.observe(s)
+        x = obs if normalizer is None else normalizer(obs)
+        a, h = policy(x, h, t == 0)
+        s2 = task.step(s, a)
+        r = task.reward(s, a, s2)
+        if truncation is not None:
+            cut = (t + 1) % truncation == 0
+            s2 = jax.tree_util.tree_map(lambda v: jnp.where(cut, jax.lax.stop_gradient(v), v), s2)
+            h = jnp.where(cut, jax.lax.stop_gradient(h), h)
+        return (s2, h), (r, obs, a, s2.q, s2.qd)
+
+    _, (r, obs, a, q, qd) = jax.lax.scan(body, (s0, h0), jnp.arange(task.horizon))
+    q = jnp.concatenate([s0.q[None], q])
+    qd = jnp.concatenate([s0.qd[None], qd])
+    return Episode(jnp.sum(r), r, obs, a, q, qd)
+
+
+def evaluate(task: AbstractTask, policy, normalizer: Normalizer | None, key: PRNGKeyArray,
+             episodes: int) -> tuple[Float[Array, " episodes"], Bool[Array, " episodes"]]:
+    """Deterministic returns ``(episodes,)`` and balanced flags ``(episodes,)`` (:func:`lagrange.tasks.balanced`)
+    from ``episodes`` random starts drawn from ``key``."""
+    eps = jax.vmap(lambda k: episode(task, policy, normalizer, k))(jax.random.split(key, episodes))
+    return eps.ret, balanced(task, eps.q)

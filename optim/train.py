@@ -1,0 +1,166 @@
+"""The one host loop: :func:`train` runs any algorithm's :class:`optim.Trainer` with a progress bar, an atomic
+checkpoint after every iteration, resume, optional deterministic evaluations, and one learning-curve record."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import time
+from typing import Any, Callable, NamedTuple
+
+import jax
+import numpy as np
+from jaxtyping import PRNGKeyArray
+
+from optim import checkpoint as ckpt
+from optim.base import AlgorithmConfig, Trainer, config_from_dict, config_to_dict
+from optim.bptt import flatten_policy
+from optim.episode import evaluate
+
+__all__ = ["train", "load", "TrainResult", "describe"]
+
+
+class TrainResult(NamedTuple):
+    """What :func:`train` returns.
+
+    Attributes:
+        state: the final training state.
+        history: one dict of floats per iteration: the algorithm's metrics, ``iteration``, cumulative ``env_steps``
+            and ``elapsed`` seconds (training only; evaluations excluded).
+        curve: one dict per deterministic evaluation (``iteration``, ``env_steps``, ``elapsed``, ``return``,
+            ``return_std``, ``balanced``); empty without ``eval_every``.
+        trainer: the :class:`optim.Trainer` that ran, for ``trainer.policy(state)``.
+    """
+
+    state: Any
+    history: list[dict]
+    curve: list[dict]
+    trainer: Trainer
+
+
+def describe(task, policy) -> dict:
+    """What a checkpoint records of the task and the policy, and a resume must match: their classes, the task's body
+    set, horizon and sizes, the policy's parameter count."""
+    return {"task": type(task).__name__, "bodies": getattr(task, "bodies", None), "horizon": int(task.horizon),
+            "observation_size": int(task.observation_size), "action_size": int(task.action_size),
+            "policy": type(policy).__name__, "policy_parameters": int(flatten_policy(policy)[0].size)}
+
+
+def train(config: AlgorithmConfig, task, policy, key: PRNGKeyArray, *, checkpoint: str | os.PathLike | None = None,
+          resume: bool = False, seed: int | None = None, progress: bool = True, eval_every: int | None = None,
+          eval_episodes: int = 16, eval_key: PRNGKeyArray | None = None,
+          objective: Callable | None = None) -> TrainResult:
+    """Train ``policy`` on ``task`` with the algorithm ``config`` describes: the one entry point of every algorithm.
+
+    Runs ``config.iterations`` jitted iterations of ``config.make_trainer(task, policy, objective=objective)`` from
+    ``key`` (iteration ``i`` draws from ``fold_in(key, i)``) under a tqdm bar. With ``checkpoint`` (a path) the state,
+    config, task/policy description (:func:`describe`), ``seed``, history and curve are written atomically after every
+    iteration (by process 0 only, when ``jax.distributed`` runs several); with ``resume`` an existing checkpoint there
+    is continued, so that a resumed run ends at exactly the state of an uninterrupted one. It must have been written with the same config (``iterations`` may grow; a field
+    added to a config class since then must have its default), task, policy and ``seed``, else
+    :class:`optim.checkpoint.CheckpointError` says what differs. With ``eval_every = k`` the deterministic policy
+    (``trainer.policy(state)``) is evaluated on ``eval_episodes`` starts drawn from ``eval_key`` (the same each time;
+    default ``PRNGKey(10_000)``) before training, every ``k`` iterations and after the last.
+    """
+    from tqdm.auto import tqdm
+
+    if eval_every is not None and (isinstance(eval_every, bool) or not isinstance(eval_every, int) or eval_every < 1):
+        raise ValueError(f"train: eval_every must be None or an integer >= 1, got {eval_every!r}")
+    trainer = config.make_trainer(task, policy, objective=objective)
+    iterations = config.iterations
+    cfg_dict = config_to_dict(config)
+    identity = describe(trainer.task, policy)
+    state = trainer.init(key)
+    history: list[dict] = []
+    curve: list[dict] = []
+    if resume and checkpoint is not None and os.path.exists(checkpoint):
+        state, head = _resume(checkpoint, state, config, identity, seed)
+        history, curve = head.get("history", []), head.get("curve", [])
+    start = int(state.iteration)
+    if start > iterations:
+        raise ckpt.CheckpointError(
+            f"{checkpoint} has {start} iterations done, more than the config's iterations={iterations}: ask for "
+            f"iterations >= {start}, or start afresh without resume")
+    env_steps = history[-1]["env_steps"] if history else 0.0
+    elapsed = history[-1]["elapsed"] if history else 0.0
+    eval_key = jax.random.PRNGKey(10_000) if eval_key is None else eval_key
+    if eval_every is not None:
+        run_eval = jax.jit(lambda s: evaluate(trainer.task, *trainer.policy(s), eval_key, eval_episodes))
+
+    def evaluate_now(i):
+        rets, bal = jax.device_get(run_eval(state))
+        curve.append({"iteration": i, "env_steps": env_steps, "elapsed": elapsed, "return": float(np.mean(rets)),
+                      "return_std": float(np.std(rets)), "balanced": float(np.mean(bal))})
+
+    if eval_every is not None and not curve:
+        evaluate_now(start)
+    shown: dict[str, float] = {}
+    bar = tqdm(total=iterations, initial=start, disable=not progress, unit="it", dynamic_ncols=True)
+    for it in range(start, iterations):
+        t0 = time.perf_counter()
+        state, metrics = trainer.update(state)
+        metrics = {k: float(v) for k, v in jax.device_get(metrics).items()}
+        elapsed += time.perf_counter() - t0
+        env_steps += metrics.pop("env_steps")
+        metrics.update(iteration=it + 1, env_steps=env_steps, elapsed=elapsed)
+        history.append(metrics)
+        if metrics.get("nonfinite", 0):
+            bar.write(f"iteration {it + 1}: {int(metrics['nonfinite'])} update(s) or candidate(s) went non-finite "
+                      f"(skipped, or fitness -inf)")
+        if eval_every is not None and ((it + 1) % eval_every == 0 or it + 1 == iterations):
+            evaluate_now(it + 1)
+        if checkpoint is not None and jax.process_index() == 0:  # one writer when several hosts run the program
+            ckpt.save(checkpoint, state, config=cfg_dict, identity=identity, seed=seed, iteration=it + 1,
+                      history=history, curve=curve)
+        shown.update({k: metrics[k] for k in trainer.summary if np.isfinite(metrics.get(k, np.nan))})
+        if curve:
+            shown["eval_return"] = curve[-1]["return"]
+        bar.set_postfix({k: f"{v:.4g}" for k, v in shown.items()} | {"steps": f"{env_steps:.2e}"}, refresh=False)
+        bar.update(1)
+    bar.close()
+    return TrainResult(state, history, curve, trainer)
+
+
+def _resume(path, like, config: AlgorithmConfig, identity: dict, seed):
+    head = ckpt.read_header(path)
+    saved = head.get("config")
+    if not isinstance(saved, dict):
+        raise ckpt.CheckpointError(f"{path} has no config in its header")
+    want = _comparable_config(config, saved)
+    want["iterations"] = saved.get("iterations")  # the iteration count may grow on resume
+    state, head = ckpt.load(path, like, config=want)
+    if head.get("identity") != identity:
+        detail = ckpt.config_difference(head.get("identity") or {}, identity, saved_as="checkpoint",
+                                        now_as="requested")
+        raise ckpt.CheckpointError(f"{path} was written for another task or policy ({detail})")
+    if seed is not None and head.get("seed") != seed:
+        raise ckpt.CheckpointError(f"{path} was written with seed {head.get('seed')!r}, requested seed {seed}")
+    return state, head
+
+
+def _comparable_config(cfg: AlgorithmConfig, saved: dict) -> dict:
+    """``cfg`` as a JSON dict to compare with a ``saved`` one: a field added to the config class since ``saved`` was
+    written is left out while it has its default (so older checkpoints of this format stay valid)."""
+    config = config_to_dict(cfg)
+    defaults = json.loads(json.dumps({f.name: f.default for f in dataclasses.fields(cfg)
+                                     if f.default is not dataclasses.MISSING}))
+    return {k: v for k, v in config.items() if k in saved or k not in defaults or v != defaults[k]}
+
+
+def load(path: str | os.PathLike, task, policy, *, objective: Callable | None = None):
+    """``(trainer, state, header)`` from a checkpoint written by :func:`train`: the config comes from the file's header;
+    ``task`` and ``policy`` must be the ones it was trained with (checked against the header). Raises
+    :class:`optim.checkpoint.CheckpointError` for a corrupt file, another format, or another task or policy."""
+    head = ckpt.read_header(path)
+    try:
+        config = config_from_dict(head.get("config") or {})
+    except (TypeError, ValueError) as err:
+        raise ckpt.CheckpointError(f"{path}: its config cannot be rebuilt ({err})") from None
+    trainer = config.make_trainer(task, policy, objective=objective)
+    identity = describe(trainer.task, policy)
+    if head.get("identity") != identity:
+        detail = ckpt.config_difference(head.get("identity") or {}, identity, saved_as="checkpoint", now_as="given")
+        raise ckpt.CheckpointError(f"{path} was written for another task or policy ({detail})")
+    state, head = ckpt.load(path, trainer.init(jax.random.PRNGKey(0)))
+    return trainer, state, head
