@@ -7,17 +7,18 @@
 
 Each candidate's APG loss is ``-mean return + lam * mean_episodes sum_t w_t ||a_t - a*_t||^2`` with ``a*_t`` the
 saturated LQR's action (``research.upright_basin``'s gain, r = 1) and ``w_t = exp(-(th1^2 + th2^2) / (2 sigma^2))``
-(wrapped angles, 0 = upright); the fitness that selects the elites stays the return. The APG loop is
-``optim.apg.apg_steps`` with that loss (``research._apg``, patched into ``optim.ce_apg``), the rest the
-laptop protocol.
+(wrapped angles, 0 = upright); the fitness that selects the elites stays the return. The loss is the ``objective``
+of ``CEAPGConfig.make_trainer`` with the distillation term in the gradient only (``research._apg.gradient_only``, so
+the returns the fitness averages stay the batch returns), the rest the laptop protocol.
 
 ``--bc`` starts the CE mean at a GRU behaviour-cloned from the LQR: 512 LQR episodes of 300 steps from upright +-0.02,
 Adam 3e-3 cosine-decayed over 4000 steps of 32 sequences, action MSE; the normaliser is fitted to those observations
 and to 512 hanging episodes (their first 300 steps) under random piecewise-constant torque (``--bc-norm lqr``: to the
-LQR's observations only), then given a count of 4000 so that training moves it. ``--lam 0`` is plain CE-APG (the
-library's loss); with ``--bc`` it starts from the cloned policy. Prints the BC policy's upright evaluation, then every
-10 iterations the best candidate's training return and its return and balanced count over the 16 evaluation episodes
-(key 1234), and over 16 upright starts (key 5, as the BC policy's).
+LQR's observations only), then given a count of 4000 so that training moves it; both are put in place of the CE mean
+and normaliser in the state ``trainer.init`` returns. ``--lam 0`` is plain CE-APG (the library's loss); with ``--bc``
+it starts from the cloned policy. Prints the BC policy's upright evaluation, then every 10 iterations the best
+candidate's training return and its return and balanced count over the 16 evaluation episodes (key 1234), and over 16
+upright starts (key 5, as the BC policy's).
 """
 
 import argparse
@@ -28,13 +29,13 @@ import jax
 import jax.numpy as jnp
 import optax
 
+from benchmarks._cli import paper_task
 from lagrange import tasks
 from lagrange.control import saturated_lqr, upright_state
-from lagrange.tasks import make_task, wrap
-from optim.apg import build_policy, evaluate, flatten_policy
-import optim.ce_apg as ce_apg
-from policies import Normalizer
-from research._apg import apg_steps_with
+from lagrange.tasks import wrap
+from optim import CEAPGConfig, evaluate, flatten_policy
+from policies import GRUPolicy, Normalizer
+from research._apg import WIDTH, gradient_only, laptop_policy, laptop_task
 from research.upright_basin import upright_lqr
 
 
@@ -47,17 +48,16 @@ def distillation_objective(teacher, upright_q, lam, sigma):
     """The APG objective with the distillation term added (the reported return, which the fitness averages, stays
     the batch return)."""
 
-    def objective(task, eps):
+    def term(eps):
         q, qd = eps.q[:, :-1], eps.qd[:, :-1]
         w = jnp.exp(-jnp.sum(wrap(q - upright_q) ** 2, -1) / (2 * sigma**2))
         gap = jnp.sum((eps.actions - jax.lax.stop_gradient(teacher(q, qd))) ** 2, -1)
-        ret = jnp.mean(eps.ret)
-        return -ret + lam * jnp.mean(jnp.sum(w * gap, -1)), ret
+        return lam * jnp.mean(jnp.sum(w * gap, -1))
 
-    return objective
+    return gradient_only(term)
 
 
-def behaviour_clone(cfg, task, teacher, seed, swing_norm=True):
+def behaviour_clone(task, teacher, seed, swing_norm=True):
     """``(flat parameters, normaliser)`` of a GRU cloned from the LQR (see the module docstring)."""
 
     def lqr_episode(k):
@@ -77,7 +77,7 @@ def behaviour_clone(cfg, task, teacher, seed, swing_norm=True):
     fit = [obs.reshape(-1, size), swing.reshape(-1, size)] if swing_norm else [obs.reshape(-1, size)]
     norm = Normalizer.create(size).update(jnp.concatenate(fit))
     norm = dataclasses.replace(norm, count=jnp.asarray(4000.0, norm.count.dtype))
-    flat, unravel = flatten_policy(build_policy(cfg, task, jax.random.PRNGKey(seed)))
+    flat, unravel = flatten_policy(GRUPolicy.for_task(task, WIDTH["acrobot"], key=jax.random.PRNGKey(seed)))
     adam = optax.adam(optax.cosine_decay_schedule(3e-3, 4000))
 
     def bc_loss(p, idx):
@@ -137,15 +137,14 @@ def main(argv=None):
                    help="observations the BC normaliser is fitted to: the LQR's and the random-torque swings', or "
                         "the LQR's only")
     args = p.parse_args(argv)
-    teacher, upright_q = make_teacher(make_task("acrobot", args.bodies))
-    if args.lam > 0:
-        ce_apg.apg_steps = apg_steps_with(distillation_objective(teacher, upright_q, args.lam, args.sigma))
-    cfg = ce_apg.CEAPGConfig.laptop("acrobot", bodies=args.bodies, upright_starts=args.upright)
-    cfg = cfg.with_iterations(args.iterations)
-    trainer = ce_apg.make_trainer(cfg)
+    teacher, upright_q = make_teacher(paper_task("acrobot", args.bodies))
+    objective = distillation_objective(teacher, upright_q, args.lam, args.sigma) if args.lam > 0 else None
+    cfg = CEAPGConfig.laptop("acrobot", upright_starts=args.upright).with_iterations(args.iterations)
+    task = laptop_task("acrobot", args.bodies)
+    trainer = cfg.make_trainer(task, laptop_policy("acrobot", task), objective=objective)
     state = trainer.init(jax.random.PRNGKey(args.seed))
     if args.bc:
-        flat, norm = behaviour_clone(cfg, trainer.task, teacher, args.seed, args.bc_norm == "lqr+swing")
+        flat, norm = behaviour_clone(trainer.task, teacher, args.seed, args.bc_norm == "lqr+swing")
         state = state._replace(mean=flat, best=flat, normalizer=norm, best_normalizer=norm)
     scores = jax.jit(lambda policy, norm: evaluate(trainer.task, policy, norm, jax.random.PRNGKey(1234), 16))
     upright = dataclasses.replace(trainer.task, upright=1.0)

@@ -26,14 +26,13 @@ import time
 
 import jax
 import numpy as np
-from benchmarks._cli import add_bodies_flag, bodies_marker, bodies_suffix
-from optim.checkpoint import write_json
 
+from benchmarks._cli import add_bodies_flag, bodies_marker, bodies_suffix
 from lagrange.tasks import balanced
-from optim import ce_apg
-from optim._loop import run
-from optim.apg import episode
+from optim import CEAPGConfig, episode, train
+from optim.checkpoint import write_json
 from optim.devices import cpu_core_count, use_cpu_cores
+from research._apg import laptop_policy, laptop_task
 
 RESULTS = pathlib.Path(__file__).resolve().parent / "results"
 HORIZONS = {False: [100, 150, 200, 300, 400, 500], True: [50, 100]}
@@ -54,23 +53,24 @@ def evaluate(task, policy, norm, key):
     return out
 
 
-def config(task_name: str, horizon: int, iterations: int, warmup: tuple[int, ...] = (),
-           bodies: str = "rods") -> ce_apg.CEAPGConfig:
-    """The task's laptop protocol on upright starts only, ``horizon``-step episodes, the warm-up ``warmup`` (from
-    upright, equal shares of the iterations) or none (replacing any warm-up a preset has), on ``bodies``."""
+def setup(task_name: str, horizon: int, iterations: int, warmup: tuple[int, ...] = (), bodies: str = "rods"):
+    """``(config, task, policy)``: the task's laptop protocol (:func:`research._apg.laptop_task`, ``laptop_policy``)
+    on upright starts only, ``horizon``-step episodes, the warm-up ``warmup`` (from upright, equal shares of the
+    iterations) or none (replacing any warm-up a preset has), on ``bodies``."""
     warm = dict(warmup_horizons=warmup, warmup_iterations=iterations // (len(warmup) + 1), warmup_upright=1.0)
-    return ce_apg.CEAPGConfig.laptop(task_name, upright_starts=1.0, horizon=horizon, iterations=iterations,
-                                     bodies=bodies, **warm)
+    cfg = CEAPGConfig.laptop(task_name, upright_starts=1.0, iterations=iterations, **warm)
+    task = laptop_task(task_name, bodies, horizon=horizon)
+    return cfg, task, laptop_policy(task_name, task)
 
 
 def one(task_name: str, horizon: int, iterations: int, seed: int, warmup: tuple[int, ...] = (),
         bodies: str = "rods") -> dict:
-    cfg = config(task_name, horizon, iterations, warmup, bodies)
-    trainer = ce_apg.make_trainer(cfg)
+    cfg, task, policy = setup(task_name, horizon, iterations, warmup, bodies)
     t0 = time.perf_counter()
-    state, history = run(trainer, jax.random.PRNGKey(seed), iterations=iterations, progress=False, seed=seed)
+    result = train(cfg, task, policy, jax.random.PRNGKey(seed), progress=False, seed=seed)
     seconds = time.perf_counter() - t0
-    policy, norm = trainer.policy(state)
+    trainer, history = result.trainer, result.history
+    policy, norm = trainer.policy(result.state)
     up = dataclasses.replace(trainer.task, upright=1.0)
     key = jax.random.PRNGKey(10_000 + seed)
     return {
@@ -110,7 +110,7 @@ def main(argv=None):
               f"{r['env_steps']:.1e} env steps, {r['seconds']:.0f} s", flush=True)
     out = {"task": args.task, **bodies_marker(args.bodies), "seed": args.seed, "iterations": iterations,
            "devices": len(jax.devices()),
-           "config": "CEAPGConfig.laptop(task, upright_starts=1, horizon=H, iterations)", "rows": rows}
+           "config": "CEAPGConfig.laptop(task, upright_starts=1, iterations) on the task with horizon=H", "rows": rows}
     if not args.quick:
         path = results_path(args.task, args.bodies)
         write_json(path, out)

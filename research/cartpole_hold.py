@@ -3,7 +3,8 @@
     python examples/cartpole_swingup.py --out runs/cartpole_swingup        # the example's default run (about 90 s)
     python -m research.cartpole_hold --checkpoint runs/cartpole_swingup/checkpoint.eqx
 
-Loads the example's checkpoint, runs ``--policy`` (the CE mean or the best candidate; by default the one the
+Loads the example's checkpoint (its task and policy read from the header; checkpoints of the format before issue 30
+are refused), runs ``--policy`` (the CE mean or the best candidate; by default the one the
 example reports, named under ``policy`` in the ``results.json`` beside the checkpoint, else the mean) from the 16
 evaluation starts of ``benchmarks/paper_tables.py`` for seed 0 (key 10_000), and prints the mean return, the range
 of the cart's final position, and, after ``--from-step``, the fraction of control steps at which the force changes
@@ -18,8 +19,8 @@ import jax
 import numpy as np
 
 from lagrange.tasks import upright_error
-from optim import ce_apg
-from optim.apg import episode
+from optim import episode
+from research._cli import load_run
 
 
 def main(argv=None):
@@ -35,7 +36,7 @@ def main(argv=None):
         if os.path.exists(results):
             with open(results) as f:
                 args.policy = json.load(f).get("policy", "mean")
-    trainer, state = ce_apg.load_checkpoint(args.checkpoint)
+    trainer, state = load_run(args.checkpoint)  # the task and policy rebuilt from the checkpoint's header
     policy, norm = trainer.policy(state, args.policy)
     keys = jax.random.split(jax.random.PRNGKey(10_000), 16)
     eps = jax.jit(jax.vmap(lambda k: episode(trainer.task, policy, norm, k)))(keys)

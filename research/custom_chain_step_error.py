@@ -27,13 +27,15 @@ import diffrax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
 import lagrange as lg  # noqa: E402
-from optim.apg import episode  # noqa: E402
-from optim.ce_apg import load_checkpoint  # noqa: E402
+from optim import episode  # noqa: E402
+from policies import GRUPolicy  # noqa: E402
+from research._cli import load_run  # noqa: E402
 
 
 def trained_states(checkpoint):
     """The trained policy's visited (q, qd) and actions (clipped), flattened over its 16 evaluation episodes."""
-    trainer, state = load_checkpoint(checkpoint, custom_chain.make_task())
+    task = custom_chain.make_task()
+    trainer, state = load_run(checkpoint, task, GRUPolicy.for_task(task, width=16))  # the example's policy
     policy, norm = trainer.policy(state)
     keys = jax.random.split(jax.random.PRNGKey(10_000), 16)
     eps = jax.jit(jax.vmap(lambda k: episode(trainer.task, policy, norm, k)))(keys)

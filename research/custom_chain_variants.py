@@ -22,8 +22,8 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 import custom_chain  # noqa: E402
 
-from optim import ce_apg  # noqa: E402
-from optim.apg import evaluate  # noqa: E402
+from optim import evaluate  # noqa: E402
+from policies import GRUPolicy  # noqa: E402
 
 BALANCE_FIRST = dict(warmup_upright=1.0)
 VARIANTS = {
@@ -54,7 +54,8 @@ def main(argv=None):
             print(f"{name}: {over}")
         return
     cfg = dataclasses.replace(custom_chain.CONFIG, **VARIANTS[args.name])
-    trainer = ce_apg.make_trainer(cfg, custom_chain.make_task())
+    task = custom_chain.make_task()
+    trainer = cfg.make_trainer(task, GRUPolicy.for_task(task, width=16))  # the example's policy
     state = trainer.init(jax.random.PRNGKey(args.seed))
     key = jax.random.PRNGKey(10_000 + args.seed)
     scores = jax.jit(lambda policy, norm: evaluate(trainer.task, policy, norm, key, 16))

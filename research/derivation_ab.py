@@ -8,7 +8,8 @@ On a shared machine the absolute times of one run drift by tens of percent, so a
 lagrange / closed form measured in the same process, for the old and the new code in turn: each round runs one
 process on a ``git worktree`` of ``--old`` and one on this checkout, and prints every row's ratio. With
 ``--training TASKS`` it times instead the CE-APG iterations of ``CEAPGConfig.laptop(task)`` (the examples' default),
-one JAX CPU device per core: the median seconds of ``--repeats`` iterations after the first (compiling) one.
+one JAX CPU device per core: the median seconds of ``--repeats`` iterations after the first (compiling) one (the
+trainer built with the API of each revision, :func:`laptop_trainer`).
 """
 
 from __future__ import annotations
@@ -61,6 +62,24 @@ def measure(rows: str, repeats: int) -> list[dict]:
     return out
 
 
+def laptop_trainer(task: str, **overrides):
+    """The CE-APG trainer of ``CEAPGConfig.laptop(task)`` (with ``overrides``) in whichever revision is imported: since
+    issue 30 the config holds settings only and the task and policy are passed (those the laptop protocol trained
+    before: the rods, the acrobot observing (sin, cos), the paper's GRU width); before it, the config named them."""
+    import optim
+
+    if hasattr(optim, "train"):  # the API since issue 30
+        from lagrange.tasks import PAPER_TASKS
+        from policies import GRUPolicy
+
+        env = PAPER_TASKS[task].rods(**({"trig": True} if task == "acrobot" else {}))
+        policy = GRUPolicy.for_task(env, 32 if task == "double_cartpole" else 16)
+        return optim.CEAPGConfig.laptop(task, **overrides).make_trainer(env, policy)
+    from optim import ce_apg
+
+    return ce_apg.make_trainer(ce_apg.CEAPGConfig.laptop(task, **overrides))
+
+
 def measure_training(tasks: str, repeats: int) -> list[dict]:
     """Seconds per CE-APG iteration of the laptop preset, for each task in ``tasks`` (comma-separated)."""
     import time
@@ -69,14 +88,13 @@ def measure_training(tasks: str, repeats: int) -> list[dict]:
     import numpy as np
 
     import lagrange
-    from optim import ce_apg
     from optim.devices import cpu_core_count, use_cpu_cores
 
     assert lagrange.__file__.startswith(sys.path[0]), (lagrange.__file__, sys.path[0])
     use_cpu_cores(cpu_core_count())
     out = []
     for task in tasks.split(","):
-        trainer = ce_apg.make_trainer(ce_apg.CEAPGConfig.laptop(task))
+        trainer = laptop_trainer(task)
         state = trainer.init(jax.random.PRNGKey(0))
         state, _ = trainer.update(state)  # compiles
         jax.block_until_ready(state)

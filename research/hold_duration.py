@@ -3,13 +3,15 @@
     python -m research.hold_duration                                  # the acrobot runs of paper_tables --variant ep1
     python -m research.hold_duration --runs runs/paper_tables/laptop_ep1h600 --seeds 0 4
 
-CE-APG trains on episodes of a fixed length (the task's 500 steps) and is judged by a hold over their last 20 %.
-This script loads the final checkpoints ``RUNS/ce_apg_<task>_<seed>.eqx`` written by ``benchmarks/paper_tables.py``
-(their configs are read from the checkpoints), runs the final deterministic policy from the same 16 hanging starts as
-the paper-tables evaluation for ``--steps`` control steps instead of the task's horizon (the first ``horizon`` steps
-are that evaluation's episodes: their returns are checked against it), and reports, per episode, the first step at or
-after ``--from-step`` at which some link is more than ``--tolerance`` rad from upright ("leaves upright"; none if it
-never does). Writes ``research/results/hold_duration_<runs folder name>.json``.
+CE-APG trains on episodes of a fixed length (the task's 500 steps) and is judged by a hold over their last 20 %. This
+script loads the final checkpoints ``RUNS/ce_apg_<task>_<seed>.eqx`` written by ``benchmarks/paper_tables.py`` (their
+configs, tasks and policies are read from the checkpoints' headers; checkpoints of the format before issue 30 are
+refused, the runs behind the recorded numbers have to be trained again with the current script), runs the final
+deterministic policy from the same 16 hanging starts as the paper-tables evaluation for ``--steps`` control steps
+instead of the task's horizon (the first ``horizon`` steps are that evaluation's episodes: their returns are checked
+against it), and reports, per episode, the first step at or after ``--from-step`` at which some link is more than
+``--tolerance`` rad from upright ("leaves upright"; none if it never does). Writes
+``research/results/hold_duration_<runs folder name>.json``.
 """
 
 from __future__ import annotations
@@ -22,11 +24,10 @@ import jax
 import numpy as np
 
 from lagrange.tasks import balanced, leaves_upright
-from optim import ce_apg
-from optim.apg import episode
+from optim import episode
 from optim.checkpoint import write_json
 from optim.devices import cpu_core_count, use_cpu_cores
-from research._cli import add_checkpoint_flags, at_least, paper_tables_checkpoint, runs_result_path
+from research._cli import add_checkpoint_flags, at_least, load_run, paper_tables_checkpoint, runs_result_path
 
 RESULTS = pathlib.Path(__file__).resolve().parent / "results"
 EVAL_EPISODES = 16  # as benchmarks/paper_tables.py
@@ -39,7 +40,7 @@ def leave_steps(task, q, *, tolerance: float, from_step: int) -> list:
 
 
 def one(path: str, seed: int, steps: int, tolerance: float, from_step: int) -> dict:
-    trainer, state = ce_apg.load_checkpoint(path)
+    trainer, state = load_run(path)  # the task and policy rebuilt from the checkpoint's header
     policy, norm = trainer.policy(state)
     task = trainer.task
     long = dataclasses.replace(task, horizon=steps)

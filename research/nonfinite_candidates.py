@@ -6,7 +6,7 @@
 
 Re-runs the config (seed 0 unless ``--seed``) iteration by iteration on the devices this process has. In each
 iteration with a non-finite candidate it re-draws that iteration's candidates exactly as ``optim.ce_apg`` does and
-re-runs every candidate's APG steps with a diagnostic copy of ``optim.apg.apg_steps`` that also records, per APG step,
+re-runs every candidate's APG steps with a diagnostic copy of ``optim.apg_steps`` that also records, per APG step,
 the largest |qd| of each coordinate over the batch's episodes, whether the batch return and the gradient are finite,
 and the largest |gradient| entry. For each non-finite candidate it prints the first non-finite step, which of the two
 failed, and the largest speeds and gradient before it; for the first three finite ones the same maxima. With
@@ -29,15 +29,15 @@ import optax
 
 from benchmarks import paper_tables
 from benchmarks._cli import add_bodies_flag
-from optim import ce_apg
-from optim.apg import build_policy, episode, flatten_policy
+from optim import episode, flatten_policy
+from policies import GRUPolicy
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "examples"))
 
 
 def diagnostic_apg(task, cfg, unravel):
     """``run(theta, normalizer, key, lr) -> (batch return, max |qd| per coordinate, return finite, gradient finite,
-    max |gradient|)`` per APG step: the same updates as ``optim.apg.apg_steps``."""
+    max |gradient|)`` per APG step: the same updates as ``optim.apg_steps``."""
     adam = optax.scale_by_adam()
 
     def loss(p, norm, keys):
@@ -65,21 +65,30 @@ def diagnostic_apg(task, cfg, unravel):
 
 
 def setup(args):
-    """``(config, task)`` of the run to replay."""
+    """``(config, build)`` of the run to replay: ``build() -> (task, policy)`` (called again under float64)."""
     if args.task == "custom_chain":
         import custom_chain
 
-        return custom_chain.CONFIG, custom_chain.make_task()
-    cfg = paper_tables.with_overrides(paper_tables.config("ce_apg", args.task, "laptop"), {"bodies": args.bodies})
-    return cfg, None
+        def build():
+            task = custom_chain.make_task()
+            return task, GRUPolicy.for_task(task, width=16)  # the example's policy
+
+        return custom_chain.CONFIG, build
+    protocol = paper_tables.with_overrides(paper_tables.config("ce_apg", args.task, "laptop"), {"bodies": args.bodies})
+
+    def build():
+        task = protocol.make_task()
+        return task, protocol.make_policy(task)
+
+    return protocol.config, build
 
 
-def float64_diagnostic(cfg, task):
+def float64_diagnostic(cfg, build):
     """``run(theta, normalizer, key, lr)``: the diagnostic APG steps of one candidate in float64 (task and policy
     template rebuilt under x64 once, so every call reuses one compilation; inputs cast to float64)."""
     with jax.enable_x64(True):
-        task64 = ce_apg.build_task(cfg, task)
-        _, unravel = flatten_policy(build_policy(cfg, task64, jax.random.PRNGKey(0)))
+        task64, policy64 = build()
+        _, unravel = flatten_policy(policy64)
         run64 = diagnostic_apg(task64, cfg, unravel)
 
     def run(theta, norm, key, lr):
@@ -116,18 +125,19 @@ def main(argv=None):
     args = p.parse_args(argv)
     if args.task == "custom_chain" and args.bodies != "rods":
         p.error("--bodies is for the paper tasks; custom_chain has the example's own bodies")
-    cfg, task = setup(args)
-    if cfg.warmup_horizons or cfg.upright_starts or cfg.train_noise is not None:
-        raise SystemExit("nonfinite_candidates replays configs without curriculum stages, upright starts or "
-                         "train_noise only")
-    trainer = ce_apg.make_trainer(cfg, task)
-    _, unravel = flatten_policy(build_policy(cfg, trainer.task, jax.random.PRNGKey(0)))
+    cfg, build = setup(args)
+    if cfg.warmup_horizons or cfg.upright_starts or cfg.train_noise is not None or cfg.authors_normalizer:
+        raise SystemExit("nonfinite_candidates replays configs without curriculum stages, upright starts, "
+                         "train_noise or the authors' normaliser only")
+    task, policy = build()
+    trainer = cfg.make_trainer(task, policy)
+    _, unravel = flatten_policy(policy)
     run = diagnostic_apg(trainer.task, cfg, unravel)
-    run64 = float64_diagnostic(cfg, task) if args.float64 else None
+    run64 = float64_diagnostic(cfg, build) if args.float64 else None
     state = trainer.init(jax.random.PRNGKey(args.seed))
     found = 0
     for it in range(args.iterations):
-        k_eps, k_run = jax.random.split(jax.random.fold_in(state.key, state.iteration))  # as optim.ce_apg.update
+        k_eps, k_run = jax.random.split(jax.random.fold_in(state.key, state.iteration))  # as the CE-APG update
         lr = cfg.learning_rate(state.iteration)
         thetas = state.mean + state.std * jax.random.normal(k_eps, (cfg.num_candidates, state.mean.size))
         keys = jax.random.split(k_run, cfg.num_candidates)

@@ -5,7 +5,8 @@
 
 CE-APG's acrobot policies settle at returns of about 2840-3000 (the paper's mean is 3053) and hold the arm up
 loosely. This script asks whether that is the learner or the motion: it loads a final policy (a checkpoint of
-``benchmarks/paper_tables.py``) and, for each of the 16 evaluation starts of the paper tables, adds a free
+``benchmarks/paper_tables.py``; its task and policy are read from the header, and checkpoints of the format before
+issue 30 are refused) and, for each of the 16 evaluation starts of the paper tables, adds a free
 time-varying offset to the policy's action, ``a_t = tanh(atanh(pi(o_t, h_t)) + z_t)``, the policy's feedback kept,
 and maximises that episode's return over ``z`` (T x m) by Adam through ``task.step`` (``z = 0`` is the policy's own
 episode up to the round-off of ``tanh(atanh(a))``, which the chaotic swing-up may amplify: both returns are reported). The result is what a controller that starts as this policy can reach *from this start*
@@ -27,12 +28,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from lagrange.tasks import balanced, upright_error
-from optim import ce_apg
-from optim.apg import episode
+from optim import episode
 from optim.checkpoint import write_json
 from optim.devices import cpu_core_count, use_cpu_cores
 from research._ascent import adam_best_seen
-from research._cli import add_checkpoint_flags, at_least, paper_tables_checkpoint, runs_result_path
+from research._cli import add_checkpoint_flags, at_least, load_run, paper_tables_checkpoint, runs_result_path
 
 RESULTS = pathlib.Path(__file__).resolve().parent / "results"
 EVAL_EPISODES = 16  # as benchmarks/paper_tables.py
@@ -75,7 +75,7 @@ def arrival(task, q, tolerance: float = 0.2):
 
 
 def one(path: str, seed: int, steps: int, learning_rate: float) -> dict:
-    trainer, state = ce_apg.load_checkpoint(path)
+    trainer, state = load_run(path)  # the task and policy rebuilt from the checkpoint's header
     policy, norm = trainer.policy(state)
     task = trainer.task
     keys = jax.random.split(jax.random.PRNGKey(10_000 + seed), EVAL_EPISODES)  # paper_tables' evaluation starts

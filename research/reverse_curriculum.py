@@ -7,7 +7,7 @@
 CE-APG's double-cartpole policies spin (research/LOG.md); ``research/swingup_lqr.py`` found a balanced swing-up
 worth 4396 (an open-loop swing-up caught by LQR). This script asks whether the learner can follow it backwards. The
 states ``X[k] = (q, qd)`` at steps k of that controller's noise-free episode seed the training starts
-(``Task.starts``, with the task's +-0.01 noise). One CE-APG run (the laptop protocol's settings) goes through stages:
+(the task's ``starts``, with its +-0.01 noise). One CE-APG run (the laptop protocol's settings) goes through stages:
 
 1. warm-up at the frontier ``--first`` (near the end of the swing-up): the horizons ``--horizons``, then the task's
    500 steps (a flat 500-step horizon does not learn the hold, ``research/balance_horizon.py``);
@@ -44,12 +44,13 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from benchmarks._cli import add_bodies_flag, bodies_marker, bodies_suffix, marked_bodies
-from lagrange.tasks import make_task
-from optim import ce_apg, checkpoint
-from optim.apg import build_task, config_to_dict, evaluate
+from benchmarks._cli import add_bodies_flag, bodies_marker, bodies_suffix, marked_bodies, paper_task
+from optim import CEAPGConfig, checkpoint, evaluate
+from optim.base import config_to_dict
 from optim.checkpoint import write_json
 from optim.devices import cpu_core_count, use_cpu_cores
+from optim.train import describe
+from research._apg import WIDTH, laptop_policy, laptop_task
 from research._cli import at_least, repo_relative
 from research.swingup_lqr import replay, results_path
 
@@ -134,8 +135,9 @@ def main(argv=None):
     p.add_argument("--cpu-devices", type=int, default=None, help="default: every core")
     p.add_argument("--quick", action="store_true",
                    help="4 candidates of 2 APG steps, frontier 130, at most 2 moves, one iteration each: a smoke run")
-    p.add_argument("--checkpoint", default=None, help="the final CE state (optim.ce_apg.load_checkpoint reads it; "
-                   "default runs/reverse_curriculum/ce_apg_<task>_<seed>.eqx)")
+    p.add_argument("--checkpoint", default=None,
+                   help="the final CE state (optim.load reads it with the task and policy; default "
+                        "runs/reverse_curriculum/ce_apg_<task>_<seed>.eqx)")
     p.add_argument("--out", default=None,
                    help="result file (default research/results/reverse_curriculum_<task>.json)")
     add_bodies_flag(p)
@@ -147,7 +149,7 @@ def main(argv=None):
     if args.last <= args.first:
         raise SystemExit(f"--last must be > --first ({args.first}), got {args.last}")
     use_cpu_cores(args.cpu_devices or cpu_core_count())
-    task = make_task(args.task, args.bodies)
+    task = paper_task(args.task, args.bodies)
     if args.last > task.horizon:
         raise SystemExit(f"--last must be <= the task's horizon {task.horizon}, got {args.last}")
     controller_path = results_path(args.task, args.controller, args.bodies)
@@ -164,8 +166,9 @@ def main(argv=None):
         overrides.update(num_candidates=4, num_elites=2, apg_steps=2, episodes=1, fitness_window=1)
     warm = warmup(first, horizons, per_stage, task.horizon)
     planned = len(warm) * per_stage + -(-first // move) * per_stage + tail  # the learning-rate schedule's length
-    cfg = ce_apg.CEAPGConfig.laptop(args.task, iterations=planned, bodies=args.bodies, **overrides)
-    task = build_task(cfg)  # with the observation the preset trains on (the acrobot's is (sin, cos, velocities))
+    cfg = CEAPGConfig.laptop(args.task, iterations=planned, **overrides)
+    task = laptop_task(args.task, args.bodies)  # the observation the preset trains on (the acrobot's: sin, cos, dth)
+    architecture = laptop_policy(args.task, task)  # the GRU the CE mean parameterises
     eval_key = jax.random.PRNGKey(10_000 + args.seed)  # the paper tables' evaluation starts
     print(f"{args.task}: controller return {expert_return:.1f}; the learning rate decays over {planned} iterations",
           flush=True)
@@ -178,12 +181,11 @@ def main(argv=None):
         the frontier ``previous``, when given), record."""
         train_task = task if lo is None else dataclasses.replace(
             task, starts=stage_starts(X, lo, args.last, args.frontier_weight))
-        stage_cfg = dataclasses.replace(cfg, horizon=h)
-        trainer = ce_apg.make_trainer(stage_cfg, train_task)
+        trainer = cfg.make_trainer(dataclasses.replace(train_task, horizon=h), architecture)
         state = run["state"] if run["state"] is not None else trainer.init(jax.random.PRNGKey(args.seed))
         for _ in range(iterations):
             state, metrics = trainer.update(state)
-        run["env_steps"] += iterations * stage_cfg.env_steps_per_iteration()
+        run["env_steps"] += iterations * cfg.env_steps_per_iteration(h)
         policy, norm = trainer.policy(state)
         row = {"frontier": lo, "training_horizon": h, "iterations": int(state.iteration),
                "env_steps": run["env_steps"], "best_training_return": float(metrics["best_return"]),
@@ -201,6 +203,11 @@ def main(argv=None):
     ckpt = args.checkpoint or os.path.join("runs", "reverse_curriculum", f"ce_apg_{args.task}{suffix}_{args.seed}.eqx")
     os.makedirs(os.path.dirname(os.path.abspath(ckpt)), exist_ok=True)
 
+    # the config as results have recorded it: the settings, and the task and policy they used to name
+    record = {"task": args.task, **dataclasses.asdict(cfg), "horizon": task.horizon, "policy": "gru",
+              "width": WIDTH[args.task], "trig_observation": args.task == "acrobot",  # as the laptop preset set it
+              "bodies": args.bodies}
+
     def save(held, finished: bool) -> dict:
         """The results so far and the kept CE state, both written atomically after every stage."""
         rows = run["rows"]
@@ -210,11 +217,11 @@ def main(argv=None):
                "controller_return": expert_return,
                "first": first, "last": args.last, "move": move, "per_stage": per_stage, "horizons": horizons,
                "frontier_weight": args.frontier_weight, "tail": tail, "max_stages": max_stages, "held": args.held,
-               "quick": args.quick, "config": dataclasses.asdict(cfg), "finished": finished, "held_back_to": held,
+               "quick": args.quick, "config": record, "finished": finished, "held_back_to": held,
                "final_hanging_return": final["hanging_return"], "final_hanging_balanced": final["hanging_balanced"],
                "env_steps": run["env_steps"], "checkpoint": repo_relative(ckpt), "stages": rows}
-        checkpoint.save(ckpt, run["state"], config=config_to_dict(cfg), seed=args.seed,
-                        iteration=int(run["state"].iteration))
+        checkpoint.save(ckpt, run["state"], config=config_to_dict(cfg), identity=describe(task, architecture),
+                        seed=args.seed, iteration=int(run["state"].iteration))
         write_json(path, out)
         return out
 

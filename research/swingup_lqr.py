@@ -35,9 +35,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from benchmarks._cli import add_bodies_flag, bodies_marker, bodies_suffix, marked_bodies
+from benchmarks._cli import add_bodies_flag, bodies_marker, bodies_suffix, marked_bodies, paper_task
 from lagrange.control import upright_deviation, upright_state
-from lagrange.tasks import TaskState, balanced, make_task
+from lagrange.tasks import TaskState, balanced
 from optim.checkpoint import write_json
 from research._ascent import adam_best_seen
 from research._cli import at_least
@@ -142,7 +142,7 @@ def rerun_float64(task, K, T: int, z) -> tuple[float, bool]:
     """The controller's noise-free episode re-run in float64: ``(return, balanced)``. A swing-up that arrives at the
     edge of the LQR's basin can depend on round-off; one that holds in both precisions does not."""
     with jax.enable_x64(True):
-        task = make_task(task.kind, task.bodies)  # rebuilt inside the context: float64 parameters
+        task = paper_task(task.name, task.bodies)  # rebuilt inside the context: float64 parameters
         episode = make_controller(task, K, T)
         ret, states, _, _ = jax.jit(episode)(jnp.asarray(z, jnp.float64), hanging(task))
         return float(ret), bool(balanced(task, states.q))
@@ -199,7 +199,7 @@ def main(argv=None):
     seeds = args.seeds[:1] if args.quick else args.seeds
     iterations, refine_steps = (30, 500) if args.quick else (args.iterations, args.refine_steps)
     knots, lr = args.knots or knots, args.lr or lr
-    task = make_task(args.task, args.bodies)
+    task = paper_task(args.task, args.bodies)
     at_least(knots=(knots, 2), population=(args.population, 2), elites=(args.elites, 1),
              iterations=(iterations, 1), refine_steps=(refine_steps, 0), times=(min(times), 1))
     if args.elites > args.population:
@@ -246,7 +246,7 @@ def replot(args) -> dict:
         out = json.load(f)
     if out.get("task") != args.task or marked_bodies(out) != args.bodies or not out.get("best"):
         raise SystemExit(f"{path} holds no balanced controller for --task {args.task} --bodies {args.bodies}")
-    plot(make_task(args.task, args.bodies), np.asarray(out["lqr_gain"]), out["best"], args.plot)
+    plot(paper_task(args.task, args.bodies), np.asarray(out["lqr_gain"]), out["best"], args.plot)
     print(f"drew {args.plot} from {path}")
     return out
 
@@ -257,7 +257,7 @@ def plot(task, K, row: dict, path: str) -> None:
     from lagrange.plotting import episode_figure
 
     ret, states, actions, _ = replay(task, K, row)
-    title = f"{task.kind}: open-loop swing-up ({row['T'] * task.dt:.2f} s) + LQR, return {float(ret):.0f}"
+    title = f"{task.name}: open-loop swing-up ({row['T'] * task.dt:.2f} s) + LQR, return {float(ret):.0f}"
     episode_figure(task, states.q, actions, path, qd=states.qd, title=title,
                    marks=[(row["T"] * task.dt, "LQR takes over")])
 

@@ -25,9 +25,9 @@ import pathlib
 
 import numpy as np
 
-from benchmarks._cli import add_bodies_flag, bodies_marker, bodies_suffix
+from benchmarks._cli import add_bodies_flag, bodies_marker, bodies_suffix, paper_task
 from lagrange.control import basin, linearise, lqr_gain, saturated_lqr
-from lagrange.tasks import TASKS, make_task
+from lagrange.tasks import PAPER_TASKS
 from optim.checkpoint import write_json
 
 RESULTS = pathlib.Path(__file__).resolve().parent / "results"
@@ -57,7 +57,7 @@ def basin_row(task, r: float, steps: int) -> dict:
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--task", choices=tuple(TASKS), default="acrobot")
+    p.add_argument("--task", choices=tuple(PAPER_TASKS), default="acrobot")
     add_bodies_flag(p)
     p.add_argument("--r", nargs="+", type=float, default=[1.0, 1e2, 1e4],
                    help="LQR control weights R (larger: smaller gains)")
@@ -68,7 +68,7 @@ def main(argv=None):
         raise SystemExit(f"--steps must be >= 1, got {args.steps}")
     if any(not r > 0 for r in args.r):
         raise SystemExit(f"--r must be > 0, got {args.r}")
-    task = make_task(args.task, args.bodies)
+    task = paper_task(args.task, args.bodies)
     rows = []
     for r in args.r:
         row = basin_row(task, r, args.steps)
