@@ -57,8 +57,9 @@ def train(config: AlgorithmConfig, task, policy, key: PRNGKeyArray, *, checkpoin
     ``key`` (iteration ``i`` draws from ``fold_in(key, i)``) under a tqdm bar. With ``checkpoint`` (a path) the state,
     config, task/policy description (:func:`describe`), ``seed``, history and curve are written atomically after every
     iteration (by process 0 only, when ``jax.distributed`` runs several); with ``resume`` an existing checkpoint there
-    is continued, so that a resumed run ends at exactly the state of an uninterrupted one. It must have been written with the same config (``iterations`` may grow; a field
-    added to a config class since then must have its default), task, policy and ``seed``, else
+    is continued: with the same config a resumed run ends at exactly the state of an uninterrupted one. It must have
+    been written with the same config (``iterations`` may grow, which changes a learning-rate schedule that spans
+    them; a field added to a config class since then must have its default), task, policy and ``seed``, else
     :class:`optim.checkpoint.CheckpointError` says what differs. With ``eval_every = k`` the deterministic policy
     (``trainer.policy(state)``) is evaluated on ``eval_episodes`` starts drawn from ``eval_key`` (the same each time;
     default ``PRNGKey(10_000)``) before training, every ``k`` iterations and after the last.
@@ -129,14 +130,17 @@ def _resume(path, like, config: AlgorithmConfig, identity: dict, seed):
         raise ckpt.CheckpointError(f"{path} has no config in its header")
     want = _comparable_config(config, saved)
     want["iterations"] = saved.get("iterations")  # the iteration count may grow on resume
-    state, head = ckpt.load(path, like, config=want)
+    # config, task/policy and seed first: a state of another shape would otherwise read as a corrupt file
+    if saved != want:
+        detail = ckpt.config_difference(saved, want, saved_as="checkpoint", now_as="requested")
+        raise ckpt.CheckpointError(f"{path} was written with a different config ({detail})")
     if head.get("identity") != identity:
         detail = ckpt.config_difference(head.get("identity") or {}, identity, saved_as="checkpoint",
                                         now_as="requested")
         raise ckpt.CheckpointError(f"{path} was written for another task or policy ({detail})")
     if seed is not None and head.get("seed") != seed:
         raise ckpt.CheckpointError(f"{path} was written with seed {head.get('seed')!r}, requested seed {seed}")
-    return state, head
+    return ckpt.load(path, like, config=want)
 
 
 def _comparable_config(cfg: AlgorithmConfig, saved: dict) -> dict:

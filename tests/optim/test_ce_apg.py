@@ -1,9 +1,11 @@
-"""CE-APG (optim/ce_apg.py): config checks naming the field, the paper's and laptop presets, the warm-up schedule,
-a stated return on a small problem (a pendulum swung up and balanced, 850 of 1000), non-finite candidates, the
-training starts (upright, noise) kept apart from the evaluated task, a checkpoint that rebuilds its trainer, and
-``make_train`` as one jittable function equal to the host loop."""
+"""CE-APG (optim/ce_apg.py): the paper's and laptop presets, the warm-up schedule, a stated return on a small problem
+(a pendulum swung up and balanced, 850 of 1000) with its checkpoint round trip, the task and policy it is given (their
+body set, observation and architecture) kept as given, the candidates' fitness from the objective it is given
+(default: the mean return), non-finite candidates, and the training starts (upright, noise, warm-up horizons) kept
+apart from the evaluated task."""
 
 import dataclasses
+import functools
 
 import jax
 import jax.numpy as jnp
@@ -11,179 +13,219 @@ import numpy as np
 import pytest
 
 import lagrange as lg
-from lagrange import tasks as lg_tasks
-from lagrange.tasks import chain_swingup
-from optim import apg, ce_apg, cem, checkpoint
-from optim._loop import params_equal, run
-from optim.apg import evaluate
-from tests.helpers import tiny_ce_apg_config
-
-
-@pytest.mark.parametrize(
-    "make, field",
-    [
-        (lambda: ce_apg.CEAPGConfig(num_candidates=0), "num_candidates"),
-        (lambda: ce_apg.CEAPGConfig(num_candidates=4, num_elites=5), "num_elites"),
-        (lambda: ce_apg.CEAPGConfig(lr_start=-1e-3), "lr_start"),
-        (lambda: ce_apg.CEAPGConfig(lr_end=float("nan")), "lr_end"),
-        (lambda: ce_apg.CEAPGConfig(task="hopper"), "task"),
-        (lambda: ce_apg.CEAPGConfig(init_std=-0.1), "init_std"),
-        (lambda: ce_apg.CEAPGConfig(apg_steps=3, fitness_window=5), "fitness_window"),
-        (lambda: ce_apg.CEAPGConfig(policy="transformer"), "policy"),
-        (lambda: ce_apg.CEAPGConfig(upright_starts=1.5), "upright_starts"),
-        (lambda: ce_apg.CEAPGConfig(upright_starts=-0.1), "upright_starts"),
-        (lambda: ce_apg.CEAPGConfig(train_noise=-0.1), "CEAPGConfig.train_noise must be a finite number >= 0"),
-        (lambda: ce_apg.CEAPGConfig(train_noise=float("inf")), "train_noise"),
-        (lambda: ce_apg.CEAPGConfig(warmup_horizons=(100, 0)), r"warmup_horizons\[1\]"),
-        (lambda: ce_apg.CEAPGConfig(warmup_horizons="100"), "warmup_horizons"),
-        (lambda: ce_apg.CEAPGConfig(warmup_horizons=(100,), warmup_iterations=0), "warmup_iterations"),
-        (lambda: ce_apg.CEAPGConfig(warmup_upright=1.5), "warmup_upright"),
-        (lambda: ce_apg.CEAPGConfig(iterations=20, warmup_horizons=(100, 200), warmup_iterations=15), "iterations"),
-        (lambda: ce_apg.CEAPGConfig(apg_steps=0, warmup_horizons=(100,)), "warmup_horizons"),
-        (lambda: ce_apg.CEAPGConfig(bodies="mujoco"), r"bodies must be one of \['rods', 'brax_v1'\]"),
-    ],
-)
-def test_bad_configs_name_the_field(make, field):
-    with pytest.raises(ValueError, match=field):
-        make()
-
-
-def test_bodies_field_builds_the_brax_v1_task():
-    """``bodies`` reaches the trainer's task: the default is the rods task unchanged, "brax_v1" the authors' bodies."""
-    rods = apg.build_task(ce_apg.CEAPGConfig.laptop("acrobot"))
-    brax = apg.build_task(ce_apg.CEAPGConfig.laptop("acrobot", bodies="brax_v1"))
-    assert rods.trig and brax.trig
-    for task, bodies in ((rods, "rods"), (brax, "brax_v1")):
-        want = lg_tasks.make_task("acrobot", bodies).chain
-        for field in ("mass", "length", "com", "inertia"):
-            np.testing.assert_array_equal(getattr(task.chain, field), getattr(want, field))
-    assert not np.allclose(brax.chain.inertia, rods.chain.inertia)
-    # a task passed to make_trainer may carry the config's bodies (a Brax v1 task with its own starts); a task on
-    # other bodies is refused, naming the field
-    cfg = ce_apg.CEAPGConfig.laptop("acrobot", bodies="brax_v1")
-    given = dataclasses.replace(lg_tasks.make_task("acrobot", "brax_v1"), upright=1.0)
-    assert apg.build_task(cfg, given).upright == 1.0
-    with pytest.raises(ValueError, match=r"CEAPGConfig.bodies='brax_v1'.*got a task with bodies='rods'"):
-        apg.build_task(cfg, lg_tasks.make_task("acrobot"))
+import optim
+from lagrange.tasks import Acrobot, ChainSwingup, DiffRLCartpole
+from optim.ce_apg import training_tasks
+from policies import BraxNormalizer, GRUPolicy, Normalizer
+from tests.helpers import pendulum_swingup, states_equal, tiny_mlp
 
 
 def test_paper_presets():
-    c = ce_apg.CEAPGConfig.paper("acrobot")
-    assert (c.num_candidates, c.num_elites, c.iterations, c.apg_steps, c.episodes, c.horizon) == (24, 8, 200, 100, 4, 500)
-    assert (c.init_std, c.lr_start, c.lr_end, c.fitness_window, c.width) == (0.05, 1e-3, 1e-6, 5, 16)
-    assert c.env_steps_per_iteration() == 4_800_000
-    assert ce_apg.CEAPGConfig.paper("double_cartpole").width == 32
+    c = optim.CEAPGConfig.paper()
+    assert (c.num_candidates, c.num_elites, c.iterations, c.apg_steps, c.episodes) == (24, 8, 200, 100, 4)
+    assert (c.init_std, c.lr_start, c.lr_end, c.fitness_window, c.truncation) == (0.05, 1e-3, 1e-6, 5, None)
+    assert c.authors_normalizer and c == optim.CEAPGConfig(authors_normalizer=True)
+    assert optim.CEAPGConfig.paper(iterations=3).iterations == 3
+    assert c.env_steps_per_iteration(500) == 4_800_000
     # the paper's schedule: 10^((-3 (T - i) - 6 i) / T)
     for i in (0, 50, 200):
         assert float(c.learning_rate(i)) == pytest.approx(10 ** ((-3 * (200 - i) - 6 * i) / 200), rel=1e-5)
     assert float(c.learning_rate(260)) == pytest.approx(1e-6, rel=1e-5)  # past the planned iterations: lr_end
-    m = cem.config("cartpole")
-    assert (m.apg_steps, m.iterations) == (0, 2000)
-    with pytest.raises(ValueError, match="apg_steps"):
-        cem.make_trainer(c)
+    m = optim.CEMConfig()
+    assert (m.apg_steps, m.iterations, m.fitness_window) == (0, 2000, 1)
+    assert m.env_steps_per_iteration(500) == 24 * 1 * 4 * 500  # one batch of episodes per candidate
 
 
 def test_laptop_presets():
-    a = ce_apg.CEAPGConfig.laptop("acrobot")
+    a = optim.CEAPGConfig.laptop("acrobot")
     assert (a.num_candidates, a.num_elites, a.iterations, a.apg_steps, a.episodes) == (24, 6, 150, 50, 2)
-    assert a.trig_observation and a.env_steps_per_iteration() == 1_200_000
-    assert a.warmup_horizons == () and a.total_env_steps() == 150 * 1_200_000
-    assert ce_apg.CEAPGConfig.laptop("double_cartpole").width == 32
-    assert ce_apg.CEAPGConfig.laptop("cartpole", iterations=3).iterations == 3
-    with pytest.raises(ValueError, match="task"):
-        ce_apg.CEAPGConfig.laptop("hopper")
+    assert (a.lr_start, a.lr_end, a.init_std, a.authors_normalizer) == (1e-2, 1e-4, 0.05, False)
+    assert a.env_steps_per_iteration(500) == 1_200_000
+    assert a.warmup_horizons == () and a.total_env_steps(500) == 150 * 1_200_000
+    c = optim.CEAPGConfig.laptop("cartpole")
+    d = optim.CEAPGConfig.laptop("double_cartpole")
+    assert (c.num_elites, c.iterations, c.apg_steps, c.episodes, c.init_std) == (8, 120, 25, 2, 0.15)
+    assert (d.iterations, d.lr_start, d.lr_end) == (150, 1e-2, 1e-4)
+    assert optim.CEAPGConfig.laptop("cartpole", iterations=3).iterations == 3
 
 
 def test_with_iterations_compresses_the_warmup():
     """A shorter run of the same protocol (``--iterations``, ``--quick``): the warm-up keeps its share of the
     iterations, and is dropped once a stage would get less than one."""
-    # 20 iterations of 300-step and 20 of 400-step hanging episodes, then 110 of the task's 500 (README)
-    a = ce_apg.CEAPGConfig.laptop("acrobot", warmup_horizons=(300, 400), warmup_iterations=20, warmup_upright=0.0)
-    assert a.total_env_steps() == 24 * 50 * 2 * (20 * 300 + 20 * 400 + 110 * 500)
+    # 20 iterations of 300-step and 20 of 400-step hanging episodes, then 110 of the task's 500
+    a = optim.CEAPGConfig.laptop("acrobot", warmup_horizons=(300, 400), warmup_iterations=20, warmup_upright=0.0)
+    assert a.total_env_steps(500) == 24 * 50 * 2 * (20 * 300 + 20 * 400 + 110 * 500)
     assert a.with_iterations(150) == a
     q = a.with_iterations(45)
     assert (q.iterations, q.warmup_horizons, q.warmup_iterations) == (45, (300, 400), 6)
-    assert [q.training_horizon(i) for i in (0, 5, 6, 11, 12, 44)] == [300, 300, 400, 400, 500, 500]
+    assert [q.training_horizon(i, 500) for i in (0, 5, 6, 11, 12, 44)] == [300, 300, 400, 400, 500, 500]
     assert a.with_iterations(10).warmup_iterations == 1
     one = a.with_iterations(1)
-    assert (one.iterations, one.warmup_horizons, one.training_horizon(0)) == (1, (), 500)
-    c = ce_apg.CEAPGConfig.laptop("cartpole")  # no warm-up: only the iteration count changes
+    assert (one.iterations, one.warmup_horizons, one.training_horizon(0, 500)) == (1, (), 500)
+    c = optim.CEAPGConfig.laptop("cartpole")  # no warm-up: only the iteration count changes
     assert c.with_iterations(3) == dataclasses.replace(c, iterations=3)
 
 
-def test_custom_task_must_be_passed():
-    with pytest.raises(ValueError, match="custom"):
-        ce_apg.make_trainer(ce_apg.CEAPGConfig(task="custom"))
-
-
-def test_trig_observation_applies_to_a_passed_task():
-    chain = lg.Chain([lg.Link("revolute", mass=1.0, length=1.0, gear=5.0)])
-    task = chain_swingup(chain, dt=0.05, horizon=20)
-    on = ce_apg.make_trainer(ce_apg.CEAPGConfig(task="custom", horizon=20, trig_observation=True), task).task
-    off = ce_apg.make_trainer(ce_apg.CEAPGConfig(task="custom", horizon=20), task).task
-    assert on.trig and on.observation_size == 3 and not off.trig and off.observation_size == 2
-
-
-def test_ce_apg_swings_a_pendulum_up():
-    """CE-APG swings a torque-limited pendulum (5 N m against 4.9 N m of gravity at horizontal) up
-    from hanging and balances it in 10 small iterations (8 x 20 x 2 x 100 env steps each)."""
-    task = chain_swingup(lg.systems.pendulum(gear=5.0), dt=0.05, horizon=100)
-    cfg = ce_apg.CEAPGConfig(task="custom", num_candidates=8, num_elites=3, iterations=10, apg_steps=20, episodes=2,
-                             horizon=100, width=8, lr_start=1e-2, lr_end=1e-3, init_std=0.3, truncation=10)
-    trainer = ce_apg.make_trainer(cfg, task)
+def test_the_task_and_policy_are_taken_as_given():
+    """The task (here the authors' Brax v1 bodies with (sin, cos) observations) is trained and evaluated as given,
+    and the policy module fixes the parameters the search runs over (the mean starts at zeros, as the authors'); a
+    curriculum changes copies of the task, never its bodies or observation, and needs a task with the fields it sets."""
+    task = Acrobot.brax_v1(trig=True, horizon=20)
+    policy = GRUPolicy.for_task(task, width=4)
+    cfg = optim.CEAPGConfig(num_candidates=2, num_elites=1, iterations=1, apg_steps=1, fitness_window=1)
+    trainer = cfg.make_trainer(task, policy)
     state = trainer.init(jax.random.PRNGKey(0))
-    for _ in range(cfg.iterations):
-        state, metrics = trainer.update(state)
-    ret, bal = evaluate(task, *trainer.policy(state), jax.random.PRNGKey(7), 32)
+    size = optim.flatten_policy(policy)[0].size
+    assert trainer.task is task and task.observation_size == 6
+    assert state.mean.shape == state.std.shape == (size,) and not bool(jnp.any(state.mean))
+    assert bool(jnp.all(state.std == cfg.init_std)) and state.normalizer.mean.shape == (6,)
+    shown, norm = trainer.policy(state, "mean")
+    assert type(shown) is GRUPolicy and shown.hidden_size == 6 and norm is state.normalizer
+    with pytest.raises(ValueError, match="which must be 'best' or 'mean'"):
+        trainer.policy(state, "worst")
+    curriculum = dataclasses.replace(cfg, iterations=4, train_noise=0.1, upright_starts=0.3, warmup_horizons=(5, 10),
+                                     warmup_iterations=1, warmup_upright=0.5)
+    stages = training_tasks(curriculum, task)
+    assert [(t.horizon, t.upright, t.noise) for t in stages] == [(5, 0.5, 0.1), (10, 0.5, 0.1), (20, 0.3, 0.1)]
+    for t in stages:
+        assert type(t) is Acrobot and t.trig and t.bodies == "brax_v1"
+        np.testing.assert_array_equal(t.chain.inertia, task.chain.inertia)
+    assert curriculum.make_trainer(task, policy).task is task  # evaluation: the task as given
+    assert training_tasks(cfg, task) == [task]
+    shac_task = DiffRLCartpole.diffrl(horizon=20)
+    for field, bad in (("noise", dict(train_noise=0.1)), ("upright", dict(upright_starts=0.5))):
+        with pytest.raises(ValueError, match=rf"the curriculum needs a task with a '{field}' field"):
+            dataclasses.replace(cfg, **bad).make_trainer(shac_task, GRUPolicy.for_task(shac_task, width=4))
+
+
+def test_ce_apg_swings_a_pendulum_up(tmp_path):
+    """CE-APG swings a torque-limited pendulum (5 N m against 4.9 N m of gravity at horizontal) up from hanging and
+    balances it in 10 small iterations (8 x 20 x 2 x 100 env steps each); its checkpoint gives the state back."""
+    task = pendulum_swingup(horizon=100)
+    policy = GRUPolicy.for_task(task, width=8)
+    cfg = optim.CEAPGConfig(num_candidates=8, num_elites=3, iterations=10, apg_steps=20, episodes=2, lr_start=1e-2,
+                            lr_end=1e-3, init_std=0.3, truncation=10)
+    path = tmp_path / "run.eqx"
+    result = optim.train(cfg, task, policy, jax.random.PRNGKey(0), checkpoint=path, seed=0, progress=False)
+    ret, bal = optim.evaluate(task, *result.trainer.policy(result.state), jax.random.PRNGKey(7), 32)
     assert float(ret.mean()) > 850  # of 1000; measured 918; a hanging pendulum scores 10 - pi^2 per step (~13)
     assert bool(bal.all())
+    assert result.history[-1]["env_steps"] == 10 * 8 * 20 * 2 * 100
+    trainer, loaded, head = optim.load(path, task, policy)
+    assert trainer.config == cfg and states_equal(loaded, result.state) and head["iteration"] == 10
 
 
-def test_nonfinite_candidates_get_minus_infinity_and_do_not_poison():
+def last_ten(episodes):
+    """A custom objective: minus the mean reward of the last 10 steps."""
+    return -jnp.mean(episodes.rewards[:, -10:])
+
+
+@pytest.mark.parametrize("objective", [None, last_ten], ids=["default", "last_ten"])
+def test_candidates_are_scored_by_the_objective(objective):
+    """With ``init_std = 0`` every candidate is the zero policy, and with one APG step its fitness is minus the
+    objective of its first batch (before the update): the default objective is the mean return
+    (``optim.mean_return_loss``), a custom one is used as given, through ``optim.train``."""
+    task = pendulum_swingup(horizon=20, noise=0.5)
+    policy = tiny_mlp(task)
+    cfg = optim.CEAPGConfig(num_candidates=3, num_elites=1, iterations=1, apg_steps=1, episodes=2,
+                            fitness_window=1, init_std=0.0)
+    key = jax.random.PRNGKey(4)
+    result = optim.train(cfg, task, policy, key, progress=False, objective=objective)
+    flat, unravel = optim.flatten_policy(policy)
+    zero, norm = unravel(jnp.zeros_like(flat)), Normalizer.create(task.observation_size)
+    _, k_run = jax.random.split(jax.random.fold_in(key, 0))
+
+    @jax.jit
+    def fitness(k):
+        keys = jax.random.split(jax.random.fold_in(k, 0), cfg.episodes)
+        eps = jax.vmap(lambda kk: optim.episode(task, zero, norm, kk))(keys)
+        return -(optim.mean_return_loss if objective is None else objective)(eps)
+
+    fit = np.array([fitness(k) for k in jax.random.split(k_run, cfg.num_candidates)])
+    assert len(set(fit.tolist())) == 3  # three batches of starts
+    np.testing.assert_allclose(result.history[0]["best_return"], fit.max(), rtol=1e-12)
+    np.testing.assert_allclose(result.history[0]["mean_return"], fit.mean(), rtol=1e-12)
+
+
+def test_authors_normalizer_protocol():
+    """``authors_normalizer``: one Brax v1 normaliser, updated once per iteration from one episode of the CE mean
+    (candidate 0's key) before the candidates run, and frozen through their APG steps: a candidate's fitness (one
+    step: its first batch, before the update) is its return under the updated normaliser, computed here by hand."""
+    task = pendulum_swingup(horizon=20, noise=0.5)
+    policy = tiny_mlp(task)
+    cfg = optim.CEAPGConfig(num_candidates=3, num_elites=1, iterations=1, apg_steps=1, episodes=2,
+                            fitness_window=1, authors_normalizer=True)
+    trainer = cfg.make_trainer(task, policy)
+    key = jax.random.PRNGKey(4)
+    init = trainer.init(key)
+    assert isinstance(init.normalizer, BraxNormalizer)
+    state, metrics = trainer.update(init)
+    _, unravel = optim.flatten_policy(policy)
+    k_eps, k_run = jax.random.split(jax.random.fold_in(key, 0))
+    keys = jax.random.split(k_run, cfg.num_candidates)
+    norm = init.normalizer.update(optim.episode(task, unravel(init.mean), init.normalizer, keys[0]).obs)
+    for a, b in zip(jax.tree_util.tree_leaves((state.normalizer, state.best_normalizer)),
+                    jax.tree_util.tree_leaves((norm, norm))):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-14)
+    assert float(state.normalizer.steps) == 20  # one episode of 20 observations, none from the APG batches
+    thetas = init.mean + init.std * jax.random.normal(k_eps, (cfg.num_candidates, init.mean.size), init.mean.dtype)
+
+    @jax.jit
+    def fitness(theta, k):
+        keys = jax.random.split(jax.random.fold_in(k, 0), cfg.episodes)
+        return jnp.mean(jax.vmap(lambda kk: optim.episode(task, unravel(theta), norm, kk).ret)(keys))
+
+    fit = np.array([fitness(t, k) for t, k in zip(thetas, keys)])
+    np.testing.assert_allclose(metrics["best_return"], fit.max(), rtol=1e-12)
+    np.testing.assert_allclose(metrics["mean_return"], fit.mean(), rtol=1e-12)
+
+
+def test_nonfinite_candidates_get_minus_infinity_and_do_not_poison(capsys):
     # a gear of 1e300 drives velocities to ~1e298 in one step: their squares overflow to inf, then NaN
-    task = chain_swingup(lg.systems.pendulum(gear=1e300), dt=0.05, horizon=5)
-    cfg = ce_apg.CEAPGConfig(task="custom", num_candidates=4, num_elites=2, iterations=1, apg_steps=2, episodes=1,
-                             horizon=5, width=4, fitness_window=1, init_std=0.1)
-    trainer = ce_apg.make_trainer(cfg, task)
-    state, metrics = trainer.update(trainer.init(jax.random.PRNGKey(0)))
-    assert int(metrics["nonfinite"]) == 4
-    assert float(metrics["best_return"]) == -np.inf
+    task = ChainSwingup(lg.systems.pendulum(gear=1e300), dt=0.05, horizon=5)
+    cfg = optim.CEAPGConfig(num_candidates=4, num_elites=2, iterations=1, apg_steps=2, episodes=1, fitness_window=1,
+                            init_std=0.1)
+    result = optim.train(cfg, task, tiny_mlp(task), jax.random.PRNGKey(0), progress=False)
+    metrics, state = result.history[0], result.state
+    assert metrics["nonfinite"] == 4 and metrics["best_return"] == -np.inf
     assert bool(jnp.all(jnp.isfinite(state.mean))) and bool(jnp.all(jnp.isfinite(state.std)))
+    assert "iteration 1: 4 update(s) or candidate(s) went non-finite" in capsys.readouterr().out
+
+
+@functools.cache
+def _zero_policy_fitness(**curriculum):
+    """Best fitness of one iteration of two zero-policy candidates (std 0) scored on 2 episodes without APG steps on
+    the 20-step pendulum, and the task the trainer evaluates (cached: the tests below share the plain run)."""
+    task = pendulum_swingup(horizon=20)
+    cfg = optim.CEAPGConfig(num_candidates=2, num_elites=1, iterations=1, apg_steps=0, episodes=2, init_std=0.0,
+                            **curriculum)
+    trainer = cfg.make_trainer(task, tiny_mlp(task))
+    _, metrics = trainer.update(trainer.init(jax.random.PRNGKey(0)))
+    return float(metrics["best_return"]), trainer.task
 
 
 def test_upright_starts_train_on_balanced_starts_and_evaluate_hanging():
     """``upright_starts`` changes the episodes candidates are scored on, never the task the trainer evaluates.
-    With a zero policy (mean 0, std 0) a 1 kg pendulum left hanging earns about 10 - pi^2 per step; started
-    upright it earns nearly 10 per step while it slowly starts to topple."""
-    task = chain_swingup(lg.systems.pendulum(gear=5.0), dt=0.05, horizon=20)
-    fitness = {}
-    for p in (0.0, 1.0):
-        cfg = ce_apg.CEAPGConfig(task="custom", num_candidates=2, num_elites=1, iterations=1, apg_steps=0,
-                                 episodes=2, horizon=20, width=4, init_std=0.0, upright_starts=p)
-        trainer = ce_apg.make_trainer(cfg, task)
-        assert trainer.task.upright == 0  # evaluation keeps the hanging start
-        _, metrics = trainer.update(trainer.init(jax.random.PRNGKey(0)))
-        fitness[p] = float(metrics["best_return"])
+    With a zero policy a 1 kg pendulum left hanging earns about 10 - pi^2 per step; started upright it earns nearly
+    10 per step while it slowly starts to topple."""
+    hanging, evaluated = _zero_policy_fitness()
+    upright, evaluated_up = _zero_policy_fitness(upright_starts=1.0)
+    assert evaluated.upright == evaluated_up.upright == 0  # evaluation keeps the hanging start
     # hanging within ~0.011 rad of straight down (reset noise 0.01 on angle and speed): at most 20 (10 - (pi - 0.011)^2)
-    assert fitness[0.0] <= 20 * (10 - (np.pi - 0.011) ** 2)
-    assert fitness[1.0] > 190  # of 200 for a perfect hold; measured 199.9 (a 0.01 rad tilt grows e^3.8t, ~0.4 rad at 1 s)
+    assert hanging <= 20 * (10 - (np.pi - 0.011) ** 2)
+    assert upright > 190  # of 200 for a perfect hold; measured 199.9 (a 0.01 rad tilt grows e^3.8t, ~0.4 rad at 1 s)
 
 
 def test_train_noise_widens_the_training_starts_and_evaluates_the_task():
     """``train_noise`` changes the starts candidates are scored on, never the task the trainer evaluates. With a
     zero policy (no torque) a pendulum started exactly hanging and at rest stays there: 10 - pi^2 per step; the
     task's own +-0.01 is the default (``None``), bit for bit."""
-    task = chain_swingup(lg.systems.pendulum(gear=5.0), dt=0.05, horizon=20)
     fitness = {}
     for noise in (None, 0.01, 0.0, 0.5):
-        cfg = ce_apg.CEAPGConfig(task="custom", num_candidates=2, num_elites=1, iterations=1, apg_steps=0,
-                                 episodes=2, horizon=20, width=4, init_std=0.0, train_noise=noise)
-        trainer = ce_apg.make_trainer(cfg, task)
-        assert trainer.task.noise == 0.01  # evaluation keeps the task's noise
-        _, metrics = trainer.update(trainer.init(jax.random.PRNGKey(0)))
-        fitness[noise] = float(metrics["best_return"])
+        fitness[noise], evaluated = _zero_policy_fitness(**({} if noise is None else {"train_noise": noise}))
+        assert evaluated.noise == 0.01  # evaluation keeps the task's noise
     assert fitness[0.01] == fitness[None]
-    np.testing.assert_allclose(fitness[0.0], 20 * (10 - np.pi ** 2), rtol=1e-5)
+    np.testing.assert_allclose(fitness[0.0], 20 * (10 - np.pi ** 2), rtol=1e-12)
     assert fitness[None] != fitness[0.0]
     # starts up to 0.5 rad and 0.5 rad/s off hanging swing nearer upright: measured 36.2 against 3.3
     assert fitness[0.5] > fitness[None] + 5
@@ -193,64 +235,33 @@ def test_warmup_horizons_schedule_the_training_episodes(tmp_path):
     """The warm-up trains and scores candidates on ``warmup_horizons[i]``-step episodes from upright for
     ``warmup_iterations`` iterations each, then on the full hanging task; env steps follow the stage; a run
     resumed across a stage boundary (its config holds a tuple, stored as JSON) equals an uninterrupted one and
-    the one jittable ``make_train``. With a zero policy (std 0, a negligible learning rate) a 1 kg pendulum
-    started upright earns nearly 10 per step; left hanging about 10 - pi^2."""
-    task = chain_swingup(lg.systems.pendulum(gear=5.0), dt=0.05, horizon=20)
-    cfg = ce_apg.CEAPGConfig(task="custom", num_candidates=2, num_elites=1, iterations=5, apg_steps=1, episodes=2,
-                             horizon=20, width=4, fitness_window=1, init_std=0.0, lr_start=1e-12, lr_end=1e-12,
-                             warmup_horizons=[4, 8], warmup_iterations=2)
-    assert cfg.warmup_horizons == (4, 8) and [cfg.training_horizon(i) for i in range(5)] == [4, 4, 8, 8, 20]
-    assert cfg.total_env_steps() == 2 * 1 * 2 * (4 + 4 + 8 + 8 + 20)
-    trainer = ce_apg.make_trainer(cfg, task)
-    assert trainer.task.horizon == 20 and trainer.task.upright == 0  # evaluation: the full hanging task
+    ``scan_train``. With a zero policy (std 0, a negligible learning rate) a 1 kg pendulum started upright earns
+    nearly 10 per step; left hanging about 10 - pi^2."""
+    task = pendulum_swingup(horizon=20)
+    policy = tiny_mlp(task)  # zero weights (std 0): no torque, as any zero policy
+    cfg = optim.CEAPGConfig(num_candidates=2, num_elites=1, iterations=5, apg_steps=1, episodes=2, fitness_window=1,
+                            init_std=0.0, lr_start=1e-12, lr_end=1e-12, warmup_horizons=[4, 8], warmup_iterations=2)
+    assert cfg.warmup_horizons == (4, 8) and [cfg.training_horizon(i, 20) for i in range(5)] == [4, 4, 8, 8, 20]
+    assert cfg.total_env_steps(20) == 2 * 1 * 2 * (4 + 4 + 8 + 8 + 20)
     key = jax.random.PRNGKey(2)
-    state, hist = run(trainer, key, iterations=5, ckpt_path=str(tmp_path / "a.eqx"), progress=False, seed=2)
+    full = optim.train(cfg, task, policy, key, checkpoint=tmp_path / "a.eqx", seed=2, progress=False)
+    assert full.trainer.task is task  # evaluation: the full hanging task
+    hist = full.history
     assert [h["training_horizon"] for h in hist] == [4, 4, 8, 8, 20]
     steps = [h["env_steps"] for h in hist]
     assert np.diff([0.0] + steps).tolist() == [2 * 2 * h for h in (4, 4, 8, 8, 20)]
     best = [h["best_return"] for h in hist]
     assert 39 < best[0] <= 40 and 78 < best[2] <= 80  # upright, 4 and 8 steps (measured 39.99 and 79.9)
     assert best[4] <= 20 * (10 - (np.pi - 0.011) ** 2)  # hanging (within 0.011 rad of straight down), 20 steps
-    run(trainer, key, iterations=3, ckpt_path=str(tmp_path / "b.eqx"), progress=False, seed=2)
-    resumed, hist_b = run(trainer, key, iterations=5, ckpt_path=str(tmp_path / "b.eqx"), resume=True,
-                          progress=False, seed=2)
-    assert params_equal(resumed, state) and [h["best_return"] for h in hist_b] == best
-    scanned, metrics = jax.jit(ce_apg.make_train(cfg, task))(key)
-    assert params_equal(scanned, state)
+    # interrupted after iteration 3 (inside the second stage), resumed: the uninterrupted run
+    path = tmp_path / "b.eqx"
+    state = full.trainer.init(key)
+    for _ in range(3):
+        state, _ = full.trainer.update(state)
+    head = optim.checkpoint.read_header(tmp_path / "a.eqx")
+    optim.checkpoint.save(path, state, **{**head, "iteration": 3, "history": hist[:3]})
+    resumed = optim.train(cfg, task, policy, key, checkpoint=path, resume=True, seed=2, progress=False)
+    assert states_equal(resumed.state, full.state) and [h["best_return"] for h in resumed.history] == best
+    scanned, metrics = jax.jit(optim.scan_train(full.trainer))(key)
+    assert states_equal(scanned, full.state)
     assert metrics["training_horizon"].tolist() == [4, 4, 8, 8, 20]
-
-
-TINY = tiny_ce_apg_config()
-
-
-@pytest.fixture(scope="module")
-def tiny_trainer():
-    return ce_apg.make_trainer(TINY)
-
-
-def test_load_checkpoint_rebuilds_the_trainer_from_the_header(tiny_trainer, tmp_path):
-    """``ce_apg.load_checkpoint(path)`` needs no config: the header's gives back the same trainer and state."""
-    key = jax.random.PRNGKey(3)
-    path = str(tmp_path / "run.eqx")
-    state, _ = run(tiny_trainer, key, iterations=2, ckpt_path=path, progress=False, seed=3)
-    trainer, loaded = ce_apg.load_checkpoint(path)
-    assert trainer.config == TINY and params_equal(loaded, state) and int(loaded.iteration) == 2
-    plain = apg.make_trainer(apg.APGConfig(task="acrobot", iterations=1, episodes=1, horizon=5, width=4))
-    checkpoint.save(tmp_path / "apg.eqx", plain.init(key), config=apg.config_to_dict(plain.config))
-    with pytest.raises(checkpoint.CheckpointError, match="not a CE-APG checkpoint.*APGConfig"):
-        ce_apg.load_checkpoint(tmp_path / "apg.eqx")
-    head = checkpoint.read_header(path)
-    checkpoint.save(tmp_path / "new.eqx", state, config=dict(head["config"], later_field=1))
-    with pytest.raises(checkpoint.CheckpointError, match="later_field"):
-        ce_apg.load_checkpoint(tmp_path / "new.eqx")
-
-
-def test_make_train_is_one_jittable_function(tiny_trainer):
-    """``make_train(config)(key)`` (lax.scan over iterations) reaches the host loop's state."""
-    state, metrics = jax.jit(ce_apg.make_train(TINY))(jax.random.PRNGKey(5))
-    host = tiny_trainer.init(jax.random.PRNGKey(5))
-    for _ in range(TINY.iterations):
-        host, _ = tiny_trainer.update(host)
-    assert metrics["best_return"].shape == (TINY.iterations,)
-    for a, b in zip(jax.tree_util.tree_leaves(state), jax.tree_util.tree_leaves(host)):
-        np.testing.assert_allclose(np.asarray(a, float), np.asarray(b, float), rtol=1e-9, atol=1e-12)

@@ -1,53 +1,130 @@
-"""Checkpoints (optim/checkpoint.py): a round trip gives the state back bit for bit with its header; a mismatched
-config, a cut file, a foreign file and an unknown version are refused with a message naming the cause; no temporary
-file is left behind and the file gets an ordinary mode."""
+"""Checkpoints (optim/checkpoint.py, and their use by ``optim.train`` and ``optim.load``): a round trip gives the state
+back bit for bit with its header, atomically (no temporary file left, an ordinary file mode); a resume or a load
+refuses, with a message naming the cause, another config (the field), another algorithm, another task or policy (the
+header's identity), another seed, a cut file, a foreign file, a version-1 file and an unknown version; a config field
+added since a checkpoint was written matches it at its default, and only then."""
 
+import dataclasses
 import json
 import os
 
 import jax
 import pytest
 
-from optim import apg, ce_apg, checkpoint
-from optim._loop import params_equal
-from tests.helpers import tiny_ce_apg_config
+import optim
+from optim import checkpoint
+from optim.base import config_to_dict
+from tests.helpers import (RUN_KEY, RUN_SEED, pendulum_swingup, small_problem, states_equal, tiny_acrobot, tiny_gru,
+                           tiny_mlp)
 
 
-TINY = tiny_ce_apg_config()
-
-
-@pytest.fixture(scope="module")
-def tiny_trainer():
-    return ce_apg.make_trainer(TINY)
-
-
-def test_checkpoint_round_trip_and_errors(tiny_trainer, tmp_path):
-    cfg = apg.config_to_dict(TINY)
-    state, _ = tiny_trainer.update(tiny_trainer.init(jax.random.PRNGKey(1)))
+def test_save_and_load_round_trip(tmp_path):
+    task = tiny_acrobot()
+    trainer = optim.APGConfig().make_trainer(task, tiny_gru(task))
+    state = trainer.init(jax.random.PRNGKey(1))  # random weights, Adam's state, a normaliser
+    cfg = config_to_dict(trainer.config)
     path = tmp_path / "ckpt.eqx"
     checkpoint.save(path, state, config=cfg, seed=1, history=[{"best_return": 1.0}])
-    loaded, head = checkpoint.load(path, tiny_trainer.init(jax.random.PRNGKey(0)), config=cfg)
-    assert params_equal(loaded, state)
-    assert head["seed"] == 1 and head["version"] == checkpoint.VERSION and head["config"] == cfg
-    assert not [p for p in os.listdir(tmp_path) if p.startswith(".ckpt-")]  # no temp file left behind
+    loaded, head = checkpoint.load(path, trainer.init(jax.random.PRNGKey(0)), config=cfg)
+    assert states_equal(loaded, state) and not states_equal(loaded, trainer.init(jax.random.PRNGKey(0)))
+    assert checkpoint.VERSION == 2 and head == {"format": checkpoint.FORMAT, "version": 2, "config": cfg, "seed": 1,
+                                                "history": [{"best_return": 1.0}]}
+    assert not [p for p in os.listdir(tmp_path) if p.startswith(".ckpt-")]  # no temporary file left behind
     old = os.umask(0o022)
     try:  # an ordinary file's mode under the umask (mkstemp alone would leave 0600)
         checkpoint.save(tmp_path / "mode.eqx", state, config=cfg)
     finally:
         os.umask(old)
     assert (tmp_path / "mode.eqx").stat().st_mode & 0o777 == 0o644
+    with pytest.raises(checkpoint.CheckpointError, match=r"different config \(episodes: checkpoint 4, requested 3\)"):
+        checkpoint.load(path, state, config=dict(cfg, episodes=3))
+    checkpoint.write_json(tmp_path / "sub" / "results.json", {"return": 1.5})  # creates the folder, atomically
+    assert json.loads((tmp_path / "sub" / "results.json").read_text()) == {"return": 1.5}
 
-    other = dict(cfg, num_elites=3)
-    with pytest.raises(checkpoint.CheckpointError, match="num_elites"):
-        checkpoint.load(path, state, config=other)
+
+CFG, TASK, POLICY, _ = small_problem("CEAPGConfig")  # the short_run fixture's CE-APG run: 2 iterations
+
+
+@pytest.fixture(scope="module")
+def run(short_run):
+    """The checkpoint of a 2-iteration CE-APG run (seed 7), its task, policy and final state."""
+    result, path, task, policy, _ = short_run("CEAPGConfig")
+    return path, task, policy, result.state
+
+
+def _resume(path, config=CFG, task=TASK, policy=POLICY, seed=RUN_SEED):
+    return optim.train(config, task, policy, RUN_KEY, checkpoint=path, resume=True, seed=seed, progress=False)
+
+
+def test_resume_and_load_accept_their_own_run(run):
+    path, task, policy, state = run
+    assert states_equal(_resume(path).state, state)  # nothing left to do: the checkpoint's state
+    trainer, loaded, head = optim.load(path, task, policy)
+    assert trainer.config == CFG and states_equal(loaded, state) and head["seed"] == RUN_SEED
+
+
+@pytest.mark.parametrize("change, message", [
+    (dict(config=dataclasses.replace(CFG, num_elites=3)), r"num_elites: checkpoint 2, requested 3"),
+    (dict(config=dataclasses.replace(CFG, normalize=False)), r"normalize: checkpoint True, requested False"),
+    (dict(config=optim.APGConfig(iterations=2)), r"algorithm: checkpoint 'CEAPGConfig', requested 'APGConfig'"),
+    (dict(task=pendulum_swingup(horizon=30, noise=0.5)),
+     r"another task or policy \(horizon: checkpoint 20, requested 30\)"),
+    (dict(task=pendulum_swingup(horizon=20, noise=0.5, bodies="brax_v1")),
+     r"another task or policy \(bodies: checkpoint None, requested 'brax_v1'\)"),
+    (dict(policy=tiny_gru(TASK)), r"another task or policy \(.*policy: checkpoint 'MLPPolicy', requested 'GRUPolicy'"),
+    (dict(policy=tiny_mlp(TASK, width=8)), r"another task or policy \(policy_parameters: checkpoint"),
+    (dict(seed=2), r"written with seed 7, requested seed 2"),
+])
+def test_resume_refuses_another_run(run, change, message):
+    with pytest.raises(checkpoint.CheckpointError, match=message):
+        _resume(run[0], **change)
+
+
+@pytest.mark.parametrize("task, policy, message", [
+    (pendulum_swingup(horizon=20, noise=0.5, bodies="brax_v1"), None,
+     r"another task or policy \(bodies: checkpoint None, given 'brax_v1'\)"),
+    (pendulum_swingup(horizon=20, noise=0.5, trig=True), None, r"observation_size: checkpoint 2, given 3"),
+    (TASK, tiny_mlp(TASK, width=8), r"policy_parameters: checkpoint"),
+])
+def test_load_refuses_another_task_or_policy(run, task, policy, message):
+    with pytest.raises(checkpoint.CheckpointError, match=message):
+        optim.load(run[0], task, tiny_mlp(task) if policy is None else policy)
+
+
+def test_resume_a_checkpoint_written_before_a_config_field_existed(run, tmp_path):
+    """A config field added later (``upright_starts``) matches an older checkpoint at its default, and only then."""
+    path, _, _, state = run
+    head = checkpoint.read_header(path)
+    old = tmp_path / "old.eqx"
+    config = {k: v for k, v in head["config"].items() if k != "upright_starts"}
+    checkpoint.save(old, state, **{**head, "config": config})
+    assert states_equal(_resume(old).state, state)  # all its iterations done: the checkpoint's state
+    with pytest.raises(checkpoint.CheckpointError, match=r"upright_starts: checkpoint None, requested 0\.5"):
+        _resume(old, config=dataclasses.replace(CFG, upright_starts=0.5))
+
+
+def test_damaged_and_foreign_files_are_refused(run, tmp_path):
+    path, task, policy, _ = run
     data = path.read_bytes()
-    (tmp_path / "cut.eqx").write_bytes(data[: len(data) - 40])
-    with pytest.raises(checkpoint.CheckpointError, match="corrupt"):
-        checkpoint.load(tmp_path / "cut.eqx", state)
-    (tmp_path / "junk.eqx").write_bytes(b"\x00\xffnot a checkpoint")
-    with pytest.raises(checkpoint.CheckpointError, match="not a lagrange checkpoint"):
-        checkpoint.load(tmp_path / "junk.eqx", state)
-    head_v2 = json.dumps({"format": checkpoint.FORMAT, "version": 99, "config": cfg}).encode()
-    (tmp_path / "v2.eqx").write_bytes(head_v2 + b"\n" + data.split(b"\n", 1)[1])
-    with pytest.raises(checkpoint.CheckpointError, match="version 99"):
-        checkpoint.load(tmp_path / "v2.eqx", state)
+    header, payload = data.split(b"\n", 1)
+    head = json.loads(header)
+    files = {
+        "cut": (data[: len(data) - 40], r"is corrupt \(its state does not deserialise"),
+        "long": (data + b"\x00" * 8, r"is corrupt"),
+        "junk": (b"\x00\xffnot a checkpoint", r"is not a lagrange checkpoint \(unreadable header\)"),
+        "json": (b'{"format": "other"}\n', r"is not a lagrange checkpoint \(header format is"),
+        "v1": (json.dumps(dict(head, version=1)).encode() + b"\n" + payload,
+               r"has checkpoint format version 1; this code reads version 2"),
+        "v99": (json.dumps(dict(head, version=99)).encode() + b"\n" + payload, r"format version 99"),
+        "config": (json.dumps(dict(head, config=dict(head["config"], later_field=1))).encode() + b"\n" + payload,
+                   r"its config cannot be rebuilt \(config fields \['later_field'\] are not fields of CEAPGConfig\)"),
+    }
+    for name, (content, message) in files.items():
+        bad = tmp_path / f"{name}.eqx"
+        bad.write_bytes(content)
+        with pytest.raises(checkpoint.CheckpointError, match=message):
+            optim.load(bad, task, policy)
+        if name == "config":  # a resume compares the configs instead of rebuilding one
+            message = r"different config \(later_field: checkpoint 1, requested None\)"
+        with pytest.raises(checkpoint.CheckpointError, match=message):
+            _resume(bad)

@@ -1,17 +1,31 @@
-"""SHAC's config (optim/shac/config.py): the linear learning-rate decay by hand, errors naming the field, and the
-``bodies`` field reaching the trainer's task."""
+"""SHAC's config (optim/shac/config.py): the authors' cartpole settings as the defaults, the linear learning-rate
+decay by hand, and the task and actor it is given (its body set; the actor's architecture, with weights drawn from the
+run's key); it trains a stochastic ``policies.Actor`` only. Every field's validation: tests/optim/test_validate.py."""
 
 from __future__ import annotations
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from lagrange.tasks import make_task
-from optim import shac
+import optim
+from lagrange.tasks import Acrobot
+from policies import Actor, GRUPolicy
+
+
+def test_defaults_are_the_authors_cartpole_settings():
+    cfg = optim.SHACConfig()
+    assert (cfg.num_envs, cfg.short_horizon, cfg.iterations, cfg.gamma, cfg.lam) == (64, 32, 500, 0.99, 0.95)
+    assert (cfg.critic_iterations, cfg.critic_minibatches, cfg.target_alpha) == (16, 4, 0.2)
+    assert (cfg.actor_lr, cfg.critic_lr, cfg.lr_end, cfg.adam_b1, cfg.adam_b2, cfg.adam_eps) == \
+        (1e-2, 1e-3, 1e-5, 0.7, 0.95, 1e-8)
+    assert (cfg.actor_grad_norm, cfg.critic_grad_norm, cfg.critic_units, cfg.normalize) == (1.0, 1.0, (64, 64), True)
+    assert cfg.env_steps_per_epoch() == 64 * 32
 
 
 def test_learning_rates_decay_linearly_to_lr_end():
-    cfg = shac.SHACConfig(epochs=500)
+    cfg = optim.SHACConfig(iterations=500)
     a0, c0 = cfg.learning_rates(0)
     a1, c1 = cfg.learning_rates(250)
     a2, c2 = cfg.learning_rates(500)
@@ -20,24 +34,19 @@ def test_learning_rates_decay_linearly_to_lr_end():
     np.testing.assert_allclose([a2, c2], [1e-5, 1e-5], rtol=1e-6)
 
 
-def test_config_errors_name_the_field():
-    for kwargs, field in (({"gamma": 1.5}, "gamma"), ({"num_envs": 0}, "num_envs"), ({"task": "nope"}, "task"),
-                          ({"actor_units": (64, 0)}, "actor_units"), ({"adam_b1": 1.0}, "adam_b1"),
-                          ({"lam": -0.1}, "lam"), ({"critic_minibatches": 10**6}, "critic_minibatches"),
-                          ({"task": "acrobot", "bodies": "capsules"}, r"bodies must be one of \['rods', 'brax_v1'\]"),
-                          ({"bodies": "brax_v1"}, "SHACConfig.bodies='brax_v1' is for the paper tasks")):
-        with pytest.raises(ValueError, match=field):
-            shac.SHACConfig(**kwargs)
-
-
-def test_bodies_field_builds_the_brax_v1_task():
-    """``SHACConfig.bodies`` reaches the trainer's task, as ``CEAPGConfig.bodies`` does (benchmarks/algorithms.py
-    --bodies trains SHAC on the authors' Brax v1 acrobot through it)."""
-    cfg = dict(num_envs=4, short_horizon=4, epochs=2, critic_iterations=1, critic_minibatches=1)
-    rods = shac.make_trainer(shac.SHACConfig(task="acrobot", **cfg)).task
-    brax = shac.make_trainer(shac.SHACConfig(task="acrobot", bodies="brax_v1", **cfg)).task
-    for task, bodies in ((rods, "rods"), (brax, "brax_v1")):
-        want = make_task("acrobot", bodies).chain
-        for field in ("mass", "length", "com", "inertia"):
-            np.testing.assert_array_equal(getattr(task.chain, field), getattr(want, field))
-    assert not np.allclose(brax.chain.inertia, rods.chain.inertia)
+def test_the_task_and_actor_are_taken_as_given():
+    """SHAC trains on the task it is given (the authors' Brax v1 acrobot here), and the actor's architecture
+    (hidden units, initial log-std) is kept while its weights are drawn from the run's key."""
+    task = Acrobot.brax_v1(horizon=20)
+    actor = Actor.for_task(task, units=(8, 4), init_log_std=-0.5)
+    cfg = optim.SHACConfig(num_envs=4, short_horizon=4, iterations=2, critic_iterations=1, critic_minibatches=1,
+                           critic_units=(6,))
+    trainer = cfg.make_trainer(task, actor)
+    assert trainer.task is task and task.bodies == "brax_v1"
+    state = jax.jit(trainer.init)(jax.random.PRNGKey(0))
+    assert tuple(layer.out_features for layer in state.actor.mu.hidden) == (8, 4)
+    assert bool(jnp.all(state.actor.log_std == -0.5)) and state.actor.log_std.shape == (task.action_size,)
+    assert not np.array_equal(state.actor.mu.out.weight, actor.mu.out.weight)  # fresh weights from the key
+    assert state.critic.net.hidden[0].out_features == 6 and state.env_state.q.shape == (4, task.chain.n)
+    with pytest.raises(TypeError, match="SHAC trains a stochastic policies.Actor, got GRUPolicy"):
+        cfg.make_trainer(task, GRUPolicy.for_task(task))

@@ -11,6 +11,7 @@ import numpy as np
 
 from lagrange.tasks import TaskState
 from optim import shac
+from policies import Actor, Critic
 from tests.helpers import pendulum_swingup
 
 
@@ -49,8 +50,8 @@ def _setup(noise=0.0):
     task = pendulum_swingup(horizon=10, noise=noise)
     k = jax.random.split(jax.random.PRNGKey(3), 3)
     # log_std = -1000: exp underflows to exactly 0, so the actor's actions are deterministic.
-    actor = shac.Actor(2, 1, (8,), init_log_std=-1000.0, key=k[0])
-    critic = shac.Critic(2, (8,), key=k[1])
+    actor = Actor(2, 1, (8,), init_log_std=-1000.0, key=k[0])
+    critic = Critic(2, (8,), key=k[1])
     env = jax.vmap(task.reset)(jax.random.split(k[2], 3))
     env = TaskState(env.q + jnp.array([2.5]), env.qd + jnp.array([-1.0]))
     return task, actor, critic, env
