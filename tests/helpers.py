@@ -10,7 +10,8 @@
 
   (the largest error relative to the reference's largest entry, absolute below 1).
 - ``param_count``, ``pendulum_swingup`` (a small task a trainer learns in seconds), ``tiny_acrobot``, ``tiny_gru``,
-  ``tiny_mlp``, ``tiny_ce_apg_config``, ``states_equal`` and ``ROOT`` (the repository, the working directory of the
+  ``tiny_mlp``, ``tiny_ce_apg_config``, ``small_problem`` (a small run of each algorithm: the ``short_run`` fixture
+  of ``tests/optim/conftest.py``), ``states_equal`` and ``ROOT`` (the repository, the working directory of the
   tests that start a fresh interpreter): ``tests/policies/`` and ``tests/optim/``.
 """
 
@@ -245,3 +246,44 @@ def pendulum_swingup(horizon=100, noise=0.01, **options):
     from lagrange.tasks import ChainSwingup
 
     return ChainSwingup(lg.systems.pendulum(gear=5.0), dt=0.05, horizon=horizon, noise=noise, **options)
+
+
+ALGORITHMS = ("CEAPGConfig", "CEMConfig", "PAPGConfig", "APGConfig", "SHACConfig")
+"""The configs of the training algorithms, by class name."""
+
+RUN_KEY, RUN_SEED, EVAL_KEY = jax.random.PRNGKey(7), 7, jax.random.PRNGKey(5)
+"""The key and seed of the ``short_run`` fixture's runs, and the key of their evaluations' starts."""
+EVALUATED = ("CEAPGConfig", "SHACConfig")
+"""The ``short_run`` fixture's runs evaluated after every iteration: a CE search and SHAC's actor."""
+SHARDED = ("CEAPGConfig", "PAPGConfig", "SHACConfig")
+"""The runs compared between 1 and 2 devices (``tests/optim/test_devices.py``): the algorithms that shard."""
+
+
+def small_problem(name, iterations=2):
+    """``(config, task, policy, env steps per iteration)`` of a small run of the algorithm ``name`` (one of
+    ``ALGORITHMS``) on the pendulum, the smallest task (the least to compile): 20-step episodes (6 for SHAC, so that
+    episodes end inside its second 4-step window); CE-APG's 5 candidates are padded on 2 devices; SHAC's learning
+    rates are constant and its target critic's ``alpha`` is not the default."""
+    import optim
+    from policies import Actor
+
+    pendulum = pendulum_swingup(horizon=20, noise=0.5)
+    if name == "CEAPGConfig":
+        return tiny_ce_apg_config(num_candidates=5, iterations=iterations), pendulum, tiny_mlp(pendulum), 5 * 2 * 1 * 20
+    if name == "CEMConfig":
+        cfg = optim.CEMConfig(num_candidates=4, num_elites=2, iterations=iterations, episodes=2)
+        return cfg, pendulum, tiny_gru(pendulum), 4 * 1 * 2 * 20
+    if name == "PAPGConfig":
+        cfg = optim.PAPGConfig(num_runs=2, iterations=iterations, apg_steps=2, episodes=1, fitness_window=1,
+                               lr_start=1e-2, lr_end=1e-3)
+        return cfg, pendulum, tiny_mlp(pendulum), 2 * 2 * 1 * 20
+    if name == "APGConfig":
+        cfg = optim.APGConfig(iterations=iterations, steps_per_iteration=2, episodes=2, learning_rate=1e-2)
+        return cfg, pendulum, tiny_mlp(pendulum), 2 * 2 * 20
+    if name != "SHACConfig":
+        raise ValueError(f"unknown algorithm {name!r}")
+    task = pendulum_swingup(horizon=6, noise=0.5)
+    cfg = optim.SHACConfig(num_envs=4, short_horizon=4, iterations=iterations, critic_iterations=2,
+                           critic_minibatches=2, critic_units=(8,), target_alpha=0.3, actor_lr=1e-3, critic_lr=1e-3,
+                           lr_end=1e-3)
+    return cfg, task, Actor.for_task(task, units=(8,)), 4 * 4
