@@ -29,7 +29,7 @@ def main(argv=None) -> dict:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0],
                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("--seed", type=int, default=0, help="PRNG seed of the run")
-    p.add_argument("--iterations", type=int, default=None, help="epochs (default: the config's)")
+    p.add_argument("--iterations", "--epochs", type=int, default=None, help="epochs (default: the config's)")
     p.add_argument("--eval-every", type=int, default=25, help="evaluate the deterministic policy every N epochs")
     p.add_argument("--out", default="runs/shac_cartpole", help="output folder")
     p.add_argument("--quick", action="store_true", help="a short demo run (150 epochs x 32 envs)")
