@@ -38,6 +38,7 @@ class APGConfig(AlgorithmConfig):
     learning_rate: float = 1e-3
     normalize: bool = True
     truncation: int | None = None
+    max_grad_norm: float | None = None
 
     def __post_init__(self):
         c = type(self).__name__
@@ -48,6 +49,8 @@ class APGConfig(AlgorithmConfig):
         check_bool(c, "normalize", self.normalize)
         if self.truncation is not None:
             check_int(c, "truncation", self.truncation, 1)
+        if self.max_grad_norm is not None:
+            check_positive(c, "max_grad_norm", self.max_grad_norm)
 
     def make_trainer(self, task: AbstractTask, policy, *, objective: Callable | None = None) -> Trainer:
         return make_trainer(self, task, policy, objective=objective)
@@ -79,7 +82,7 @@ def make_trainer(config: APGConfig, task: AbstractTask, policy, *, objective: Ca
         key = jax.random.fold_in(state.key, state.iteration)
         res = apg_steps(task, unravel, state.params, state.normalizer, key, steps=steps, episodes=config.episodes,
                         learning_rate=config.learning_rate, truncation=config.truncation, objective=objective,
-                        opt_state=state.opt_state)
+                        opt_state=state.opt_state, max_grad_norm=config.max_grad_norm)
         rets = res.returns
         metrics = {
             "best_return": jnp.max(jnp.where(jnp.isfinite(rets), rets, -jnp.inf)),

@@ -46,6 +46,8 @@ class APGResult(NamedTuple):
             return for the default objective).
         finite: ``()`` bool: every objective value and gradient stayed finite.
         opt_state: the Adam state after the last update (``optax.scale_by_adam``'s), for a caller that carries it.
+        grad_norms: the global 2-norm of each step's gradient, before any clipping, ``(steps,)`` (non-finite where
+            the gradient was).
     """
 
     params: Float[Array, " P"]
@@ -53,12 +55,13 @@ class APGResult(NamedTuple):
     returns: Float[Array, " steps"]
     finite: Bool[Array, ""]
     opt_state: Any
+    grad_norms: Float[Array, " steps"]
 
 
 def apg_steps(task: AbstractTask, unravel: Callable[[Array], Any], params: Float[Array, " P"],
               normalizer: Normalizer | None, key: PRNGKeyArray, *, steps: int, episodes: int, learning_rate,
               truncation: int | None = None, objective: Callable[[Episode], Array] = mean_return_loss,
-              opt_state=None, update_normalizer: bool = True) -> APGResult:
+              opt_state=None, update_normalizer: bool = True, max_grad_norm: float | None = None) -> APGResult:
     """``steps`` Adam updates of ``params`` on ``objective`` of ``episodes`` random-start episodes.
 
     Step ``i`` rolls out ``unravel(params)`` from the keys ``split(fold_in(key, i), episodes)`` (:func:`episode`,
@@ -67,7 +70,8 @@ def apg_steps(task: AbstractTask, unravel: Callable[[Array], Any], params: Float
     (``opt_state=None``, as the CE-APG authors do for every candidate) or from a given ``scale_by_adam`` state. With
     ``update_normalizer`` the normaliser absorbs each batch's observations after its step; otherwise it is frozen.
     If an objective value or gradient goes non-finite, that update and every later one is skipped and ``finite`` is
-    false. No gradient clipping (as the authors ran it).
+    false. No gradient clipping by default (as the authors ran it); ``max_grad_norm`` rescales a gradient whose
+    global 2-norm exceeds it to that norm before Adam sees it. ``grad_norms`` records each step's norm either way.
     """
     adam = optax.scale_by_adam()
 
@@ -83,16 +87,22 @@ def apg_steps(task: AbstractTask, unravel: Callable[[Array], Any], params: Float
         keys = jax.random.split(jax.random.fold_in(key, i), episodes)
         (value, obs), g = grad_fn(p, norm, keys)
         good = ok & jnp.isfinite(value) & jnp.all(jnp.isfinite(g))
+        norm_g = jnp.sqrt(jnp.sum(g**2))
         g = jnp.where(good, g, 0.0)
+        if max_grad_norm is not None:  # g is zero where it was not finite, and so is the norm it is scaled by
+            safe = jnp.maximum(jnp.where(good, norm_g, 0.0), jnp.finfo(g.dtype).tiny)
+            g = g * jnp.minimum(1.0, max_grad_norm / safe)
         upd, opt2 = adam.update(g, opt)
         p2 = p - learning_rate * upd
         keep = lambda new, old: jax.tree_util.tree_map(lambda a, b: jnp.where(good, a, b), new, old)
         p2, opt2 = keep(p2, p), keep(opt2, opt)
         if norm is not None and update_normalizer:
             norm = keep(norm.update(obs), norm)
-        return (p2, opt2, norm, good), -value
+        return (p2, opt2, norm, good), (-value, norm_g)
 
+    if max_grad_norm is not None and not max_grad_norm > 0:
+        raise ValueError(f"apg_steps: max_grad_norm must be None or > 0, got {max_grad_norm!r}")
     opt0 = adam.init(params) if opt_state is None else opt_state
-    (p, opt, norm, ok), returns = jax.lax.scan(body, (params, opt0, normalizer, jnp.asarray(True)),
-                                               jnp.arange(steps))
-    return APGResult(p, norm, returns, ok & jnp.all(jnp.isfinite(returns)), opt)
+    (p, opt, norm, ok), (returns, grad_norms) = jax.lax.scan(body, (params, opt0, normalizer, jnp.asarray(True)),
+                                                             jnp.arange(steps))
+    return APGResult(p, norm, returns, ok & jnp.all(jnp.isfinite(returns)), opt, grad_norms)

@@ -58,6 +58,7 @@ class InnerAPGConfig(AlgorithmConfig):
     fitness_window: int = 5
     normalize: bool = True
     truncation: int | None = None
+    max_grad_norm: float | None = None
 
     min_apg_steps: ClassVar[int] = 1  # CE-APG allows 0: the plain cross-entropy method
 
@@ -72,6 +73,8 @@ class InnerAPGConfig(AlgorithmConfig):
         check_bool(c, "normalize", self.normalize)
         if self.truncation is not None:
             check_int(c, "truncation", self.truncation, 1)
+        if self.max_grad_norm is not None:
+            check_positive(c, "max_grad_norm", self.max_grad_norm)
         if self.apg_steps and self.fitness_window > self.apg_steps:
             raise ValueError(f"{c}.fitness_window must be <= apg_steps ({self.apg_steps}), got {self.fitness_window}")
 
@@ -104,6 +107,8 @@ class CEAPGConfig(InnerAPGConfig):
         the fitness; CEM never updates it. False (this project's laptop protocol): a :class:`policies.Normalizer` per
         candidate that absorbs every APG batch, the elites' statistics averaged into the next iteration's.
       truncation: truncated-BPTT window, None = whole episode [None].
+      max_grad_norm: rescale each APG step's gradient to at most this global 2-norm before Adam, None = no
+        clipping [None: the authors' ``adaptive_grad_clip(1e9)`` never engages].
       upright_starts: probability that a *training* episode starts balanced upright instead of
         hanging, a curriculum that shows every candidate the balance it must end in [0]. Fitness
         counts those episodes too; ``Trainer.task`` (what is evaluated) keeps the task's own start. Needs a task with
@@ -299,7 +304,7 @@ def make_trainer(config: CEAPGConfig, task: AbstractTask, policy, *, objective: 
             return theta, norm, jnp.where(jnp.isfinite(fit), fit, -jnp.inf), ~jnp.isfinite(fit), fit
         res = apg_steps(stage_task, unravel, theta, norm, k, steps=config.apg_steps, episodes=config.episodes,
                         learning_rate=lr, truncation=config.truncation, objective=objective,
-                        update_normalizer=not config.authors_normalizer)
+                        update_normalizer=not config.authors_normalizer, max_grad_norm=config.max_grad_norm)
         fit = jnp.mean(res.returns[-config.fitness_window:])
         bad = ~res.finite | ~jnp.isfinite(fit)
         return res.params, res.normalizer, jnp.where(bad, -jnp.inf, fit), bad, jnp.mean(res.returns)

@@ -85,7 +85,8 @@ def make_trainer(config: PAPGConfig, task: AbstractTask, policy, *, objective: C
 
         def run(p, norm, k):
             res = apg_steps(task, unravel, p, norm, k, steps=config.apg_steps, episodes=config.episodes,
-                            learning_rate=lr, truncation=config.truncation, objective=objective)
+                            learning_rate=lr, truncation=config.truncation, objective=objective,
+                            max_grad_norm=config.max_grad_norm)
             fit = jnp.mean(res.returns[-config.fitness_window:])
             bad = ~res.finite | ~jnp.isfinite(fit)
             return res.params, res.normalizer, jnp.where(bad, -jnp.inf, fit), bad

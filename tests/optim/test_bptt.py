@@ -1,7 +1,8 @@
 """The APG inner step (optim/bptt.py): ``apg_steps`` is a hand-written loop of Adam steps on the gradient of an
 objective of a batch of episodes, for the default objective (minus the mean return) and for a custom one (minus the
-mean of the last 10 rewards), which gives other gradients; a non-finite objective freezes the parameters and says
-so; ``flatten_policy`` round-trips a module."""
+mean of the last 10 rewards), which gives other gradients, and with its gradients clipped to a global norm; it reports
+each step's gradient norm; a non-finite objective freezes the parameters and says so; ``flatten_policy`` round-trips a
+module."""
 
 import jax
 import jax.numpy as jnp
@@ -43,8 +44,9 @@ def _cached(f):
 
 
 @_cached
-def _by_hand(problem, objective):
-    """The loop ``apg_steps`` documents, one jitted gradient per step: the gradient of each step and the results."""
+def _by_hand(problem, objective, clip=None):
+    """The loop ``apg_steps`` documents, one jitted gradient per step: the gradient of each step (before clipping to
+    the global norm ``clip``, where given) and the results."""
     task, params, unravel, norm, key = problem
 
     @jax.jit
@@ -61,7 +63,8 @@ def _by_hand(problem, objective):
     opt, p, grads, values = adam.init(params), params, [], []
     for i in range(STEPS):
         (value, obs), g = value_and_grad(p, norm, i)
-        upd, opt = adam.update(g, opt)
+        norm_g = float(np.sqrt(np.sum(np.asarray(g) ** 2)))
+        upd, opt = adam.update(g if clip is None else g * min(1.0, clip / norm_g), opt)
         p = p - LR * upd
         norm = norm.update(obs)
         grads.append(g)
@@ -79,7 +82,7 @@ def _apg(problem, **kw):
 @pytest.mark.parametrize("objective", [None, last_ten], ids=["default", "last_ten"])
 def test_apg_steps_is_the_hand_written_loop(problem, objective):
     res = _apg(problem) if objective is None else _apg(problem, objective=objective)
-    p, norm, values, _, opt = _by_hand(problem, objective or optim.mean_return_loss)
+    p, norm, values, grads, opt = _by_hand(problem, objective or optim.mean_return_loss)
     # the same operations in a scan instead of a Python loop: float64 round-off only (measured 6e-17 on the
     # parameters, 0 on the returns)
     np.testing.assert_allclose(res.params, p, rtol=1e-12, atol=1e-14)
@@ -87,6 +90,28 @@ def test_apg_steps_is_the_hand_written_loop(problem, objective):
     for a, b in zip(jax.tree_util.tree_leaves((res.normalizer, res.opt_state)), jax.tree_util.tree_leaves((norm, opt))):
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-14)
     assert bool(res.finite) and float(res.normalizer.count) == STEPS * EPISODES * 20
+    np.testing.assert_allclose(res.grad_norms, [np.linalg.norm(g) for g in grads], rtol=1e-12)
+
+
+def test_max_grad_norm_clips_the_gradient_adam_sees(problem):
+    """``max_grad_norm`` rescales a gradient longer than it to that norm before Adam: the hand-written loop with the
+    rescaling, and the reported norms are those before clipping. A bound above every norm changes nothing; a bound <= 0 is
+    refused."""
+    _, params, _, _, _ = problem
+    norms = np.asarray(_apg(problem).grad_norms)
+    clip = float(np.min(norms)) / 2  # every step is clipped (norms measured 83-111)
+    res = _apg(problem, max_grad_norm=clip)
+    p, norm, values, grads, opt = _by_hand(problem, optim.mean_return_loss, clip=clip)
+    np.testing.assert_allclose(res.params, p, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(res.returns, values, rtol=1e-12)
+    np.testing.assert_allclose(res.grad_norms, [np.linalg.norm(g) for g in grads], rtol=1e-12)
+    assert float(jnp.max(jnp.abs(res.params - _apg(problem).params))) > 1e-6  # clipping moved the run
+    loose = _apg(problem, max_grad_norm=float(np.max(norms)) * 2)
+    # a factor of exactly 1 in another compiled program: the same up to XLA's float64 round-off
+    np.testing.assert_allclose(loose.params, _apg(problem).params, rtol=1e-12, atol=1e-14)
+    with pytest.raises(ValueError, match="max_grad_norm"):
+        optim.apg_steps(None, None, params, None, None, steps=1, episodes=1, learning_rate=1.0,
+                        max_grad_norm=0.0)
 
 
 def test_the_objective_changes_the_gradient(problem):

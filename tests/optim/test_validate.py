@@ -21,6 +21,7 @@ _INNER = [  # the fields InnerAPGConfig gives CE-APG, CEM and PAPG
     ("fitness_window", 0),
     ("normalize", 1), ("normalize", "yes"),
     ("truncation", 0), ("truncation", 2.5),
+    ("max_grad_norm", 0.0), ("max_grad_norm", -1.0), ("max_grad_norm", float("nan")),
 ]
 _CE = [  # CEAPGConfig's own fields (CEMConfig inherits them)
     ("num_candidates", 0), ("num_candidates", False),
@@ -40,7 +41,7 @@ BAD_FIELDS = (
     + [(APGConfig, f, v) for f, v in [
         ("iterations", 0), ("steps_per_iteration", 0), ("steps_per_iteration", True), ("episodes", 0),
         ("learning_rate", -1.0), ("learning_rate", 0.0), ("learning_rate", float("nan")), ("normalize", 0),
-        ("truncation", 0)]]
+        ("truncation", 0), ("max_grad_norm", 0.0), ("max_grad_norm", "big")]]
     + [(SHACConfig, f, v) for f, v in [
         ("num_envs", 0), ("num_envs", True), ("short_horizon", 0), ("iterations", 0), ("iterations", True),
         ("gamma", 1.5), ("gamma", 0.0), ("lam", -0.1), ("lam", 1.1), ("critic_iterations", -1),
