@@ -39,13 +39,14 @@ def test_paper_presets():
 def test_laptop_presets():
     a = optim.CEAPGConfig.laptop("acrobot")
     assert (a.num_candidates, a.num_elites, a.iterations, a.apg_steps, a.episodes) == (24, 6, 150, 50, 2)
-    assert (a.lr_start, a.lr_end, a.init_std, a.authors_normalizer) == (1e-2, 1e-4, 0.05, False)
+    assert (a.lr_start, a.lr_end, a.init_std, a.authors_normalizer, a.max_grad_norm) == (1e-2, 1e-4, 0.05, False, 1.0)
     assert a.env_steps_per_iteration(500) == 1_200_000
     assert a.warmup_horizons == () and a.total_env_steps(500) == 150 * 1_200_000
     c = optim.CEAPGConfig.laptop("cartpole")
     d = optim.CEAPGConfig.laptop("double_cartpole")
     assert (c.num_elites, c.iterations, c.apg_steps, c.episodes, c.init_std) == (8, 120, 25, 2, 0.15)
     assert (d.iterations, d.lr_start, d.lr_end) == (150, 1e-2, 1e-4)
+    assert c.max_grad_norm is None and d.max_grad_norm is None and optim.CEAPGConfig.paper().max_grad_norm is None
     assert optim.CEAPGConfig.laptop("cartpole", iterations=3).iterations == 3
 
 
