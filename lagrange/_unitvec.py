@@ -19,6 +19,8 @@ link angles, O(n^2) transcendentals, so long chains use :mod:`lagrange.recursive
 
 from __future__ import annotations
 
+import math
+
 from lagrange import _scalar as s
 from lagrange.chain import Chain
 
@@ -43,7 +45,9 @@ class _StructureOnly:
 
     def __init__(self, chain: Chain):
         self.joints, self.axes, self.n = chain.joints, chain.axes, chain.n
+        self.offsets, self.frame_offsets = chain.offsets, chain.frame_offsets
         self.armatured, self.damped = chain.armatured, chain.damped
+        self.com_normal = None if chain.com_normal is None else SYMBOL
         self.mass = self.length = self.com = self.inertia = SYMBOL
         self.armature = None if chain.armature is None else SYMBOL
         self.gravity = None if chain.gravity is None else SYMBOL
@@ -82,20 +86,25 @@ class Geometry:
             ang.append(a)
         self.ang, self.revs = ang, revs
         self._trig: dict = {}
-        # positions of every centre of mass: lists of (coef, qk, kind, angle)
+        # positions of every centre of mass: lists of (coef, qk, kind, angle). A link's frame is at
+        # phi_a + off (a: its angle variable, off: the static sum of the frame offsets), so a vector
+        # c_d d + c_e e of the link's frame is (c_d cos off - c_e sin off) d(phi_a) + (c_d sin off + c_e cos off) e(phi_a).
+        off = chain.frame_offsets()
+        normal = chain.com_normal
         terms: list = []
         coms = []
         for i, joint in enumerate(chain.joints):
             parent = ang[i - 1] if i > 0 else BASE
+            parent_off = off[i - 1] if i > 0 else 0.0
             if i > 0:
-                terms = terms + [(chain.length[i - 1], None, "d", parent)]
+                terms = terms + _rotated(chain.length[i - 1], None, parent_off, parent)
             if joint == "prismatic":
-                ax = chain.axes[i]
+                ax = chain.axes[i] + parent_off
                 if ax == 0.0:
                     terms = terms + [(1.0, i, "e", parent)]
                 else:
                     terms = terms + [(math.cos(ax), i, "e", parent), (-math.sin(ax), i, "d", parent)]
-            coms.append(terms + [(chain.com[i], None, "d", ang[i])])
+            coms.append(terms + _rotated(chain.com[i], None if normal is None else normal[i], off[i], ang[i]))
         self.coms = coms
 
     # -- trigonometry ---------------------------------------------------------------------
@@ -214,6 +223,30 @@ class Geometry:
     def z(self, x: dict, scale=1.0):
         """scale * (x . e_z)."""
         return s.total(s.mul(s.mul(scale, c), self.unit_z(k, a)) for (k, a), c in x.items())
+
+
+def cos_sin(angle: float) -> tuple[float, float]:
+    """``(cos, sin)`` of a static angle, with values within 1e-15 of 0 snapped to 0 (so that an offset of pi or
+    pi/2 adds no round-off term)."""
+    c, sn = math.cos(angle), math.sin(angle)
+    return (0.0 if abs(c) < 1e-15 else c), (0.0 if abs(sn) < 1e-15 else sn)
+
+
+def _rotated(c_d, c_e, off: float, a) -> list:
+    """Terms of ``c_d d(phi_a + off) + c_e e(phi_a + off)`` (``c_e = None``: none) on ``d(phi_a)``, ``e(phi_a)``."""
+    if off == 0.0:
+        return [(c_d, None, "d", a)] + ([] if c_e is None else [(c_e, None, "e", a)])
+    co, so = cos_sin(off)
+    if so == 0.0:
+        return _rotated(s.mul(co, c_d), None if c_e is None else s.mul(co, c_e), 0.0, a)
+    if co == 0.0:
+        return _rotated(s.negated(s.mul(so, c_e)) if c_e is not None else 0.0, s.mul(so, c_d), 0.0, a)
+    if c_e is None:
+        return [(s.mul(co, c_d), None, "d", a), (s.mul(so, c_d), None, "e", a)]
+    return [
+        (s.sub(s.mul(co, c_d), s.mul(so, c_e)), None, "d", a),
+        (s.add(s.mul(so, c_d), s.mul(co, c_e)), None, "e", a),
+    ]
 
 
 class _Lazy:

@@ -10,14 +10,19 @@ Conventions (see also the docs' "Conventions" page):
 - ``joint="revolute"``: ``phi_i = phi_{i-1} + q_i``. ``joint="prismatic"``: ``phi_i = phi_{i-1}``
   and the frame slides by ``q_i`` along ``e(phi_{i-1} + axis)``; a prismatic base joint with
   ``axis=0`` is a cart on the x axis.
-- The centre of mass is at ``p_i + com d(phi_i)`` (default ``com = length / 2``); ``inertia`` is
+- ``offset`` (static, default 0) turns a link's frame against its parent's at ``q = 0``:
+  ``phi_i = phi_{i-1} + offset_i (+ q_i)``, so a revolute joint's zero need not hang along its
+  parent (an upright link is ``offset = pi``).
+- The centre of mass is at ``p_i + com d(phi_i) + com_normal e(phi_i)`` (default ``com = length / 2``,
+  ``com_normal = 0``); ``inertia`` is
   the moment of inertia about the centre of mass, normal to the plane (default
   ``mass length^2 / 12``, a thin rod). ``damping`` is viscous (generalized force
   ``-damping qd_i``), ``armature`` is added to ``M_ii``, and ``gear`` makes the joint actuated
-  (generalized force ``gear u_k``, ``k`` counting actuated joints in order).
+  (generalized force ``gear u_k``, ``k`` counting actuated joints in order); a ``control_range``
+  ``(lo, hi)`` clamps ``u_k`` into it before the gear, as MuJoCo clamps a limited ``ctrl``.
 
-Structure is static: the number of links, the joint kinds, the prismatic axes, which joints
-are actuated and which optional terms exist. A term given as exactly zero (no damping, no
+Structure is static: the number of links, the joint kinds, the prismatic axes, the frame
+offsets, the control ranges, which joints are actuated and which optional terms exist. A term given as exactly zero (no damping, no
 armature, zero gravity) is structurally absent and costs nothing in the compiled program; give
 it a non-zero value if you want to differentiate with respect to it.
 
@@ -89,6 +94,8 @@ class Link(eqx.Module):
         mass: link mass [kg], >= 0.
         length: distance from this joint to the next one [m], >= 0.
         com: distance from the joint to the centre of mass along the link [m]; default ``length/2``.
+        com_normal: distance of the centre of mass from the link's line, along its normal ``e`` [m];
+            default 0.
         inertia: moment of inertia about the centre of mass [kg m^2], >= 0; default ``mass length^2/12``.
         axis: for a prismatic joint, the slide direction's angle relative to the parent's normal
             ``e`` [rad]; static.
@@ -96,6 +103,10 @@ class Link(eqx.Module):
         armature: rotor inertia added to the joint's diagonal of M [kg m^2 or kg], >= 0.
         gear: if given (> 0), the joint is actuated with generalized force ``gear * u``; ``None``
             (the default) leaves it passive. To reverse a motor, negate its control.
+        offset: the angle of this link's frame relative to its parent's at ``q = 0`` [rad]; static.
+        control_range: ``(lo, hi)`` with ``lo < hi``: the control is clamped into it before the gear
+            (MuJoCo's ``ctrlrange``); ``None`` (the default) leaves it unbounded. Only for an actuated
+            joint; static.
     """
 
     joint: str = eqx.field(static=True)
@@ -107,6 +118,9 @@ class Link(eqx.Module):
     damping: Float[ArrayLike, ""] = 0.0
     armature: Float[ArrayLike, ""] = 0.0
     gear: Float[ArrayLike, ""] | None = None
+    com_normal: Float[ArrayLike, ""] = 0.0
+    offset: float = eqx.field(static=True, default=0.0)
+    control_range: tuple[float, float] | None = eqx.field(static=True, default=None)
 
     def __init__(
         self,
@@ -119,12 +133,27 @@ class Link(eqx.Module):
         damping: Float[ArrayLike, ""] = 0.0,
         armature: Float[ArrayLike, ""] = 0.0,
         gear: Float[ArrayLike, ""] | None = None,
+        *,
+        com_normal: Float[ArrayLike, ""] = 0.0,
+        offset: float = 0.0,
+        control_range: tuple[float, float] | None = None,
     ):
         if isinstance(joint, np.str_):
             joint = str(joint)
         if not isinstance(joint, str) or joint not in JOINTS:
             raise ValueError(f"Link.joint must be one of {JOINTS}, got {joint!r}")
         _check_scalar("axis", axis)
+        _check_scalar("offset", offset)
+        if control_range is not None:
+            try:
+                lo, hi = (float(x) for x in control_range)
+            except (TypeError, ValueError) as err:
+                raise TypeError(f"Link.control_range must be a pair (lo, hi) of numbers or None, got {control_range!r}") from err
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+                raise ValueError(f"Link.control_range must be finite with lo < hi, got {control_range!r}")
+            if gear is None:
+                raise ValueError("Link.control_range is given but the joint is not actuated (gear=None); give a gear")
+            control_range = (lo, hi)
         self.joint = joint
         self.mass = mass
         self.length = length
@@ -134,6 +163,9 @@ class Link(eqx.Module):
         self.damping = damping
         self.armature = armature
         self.gear = gear
+        self.com_normal = com_normal
+        self.offset = float(offset)
+        self.control_range = control_range
 
     def __check_init__(self):
         if not isinstance(self.joint, str) or self.joint not in JOINTS:
@@ -146,6 +178,7 @@ class Link(eqx.Module):
         _check_scalar("damping", self.damping, nonnegative=True)
         _check_scalar("armature", self.armature, nonnegative=True)
         _check_scalar("gear", self.gear, positive=True, optional=True)
+        _check_scalar("com_normal", self.com_normal)
 
 
 def _is_zero(x) -> bool:
@@ -179,8 +212,11 @@ class Chain(eqx.Module):
     armature: Float[Array, " n"] | None
     gear: Float[Array, " m"] | None
     gravity: Float[Array, ""] | None
+    com_normal: Float[Array, " n"] | None
     joints: tuple[str, ...] = eqx.field(static=True)
     axes: tuple[float, ...] = eqx.field(static=True)
+    offsets: tuple[float, ...] = eqx.field(static=True)
+    control_ranges: tuple[tuple[float, float] | None, ...] | None = eqx.field(static=True)
     actuated: tuple[int, ...] = eqx.field(static=True)
     damped: tuple[int, ...] = eqx.field(static=True)
     armatured: tuple[int, ...] = eqx.field(static=True)
@@ -213,6 +249,10 @@ class Chain(eqx.Module):
         )
         self.joints = tuple(lk.joint for lk in links)
         self.axes = tuple(float(lk.axis) for lk in links)
+        self.offsets = tuple(float(lk.offset) for lk in links)
+        self.com_normal = (
+            None if all(_is_zero(lk.com_normal) for lk in links) else _stack([lk.com_normal for lk in links], dtype)
+        )
         self.actuated = tuple(i for i, lk in enumerate(links) if lk.gear is not None)
         self.damped = tuple(i for i, lk in enumerate(links) if not _is_zero(lk.damping))
         self.armatured = tuple(i for i, lk in enumerate(links) if not _is_zero(lk.armature))
@@ -220,6 +260,17 @@ class Chain(eqx.Module):
         self.armature = _stack([lk.armature for lk in links], dtype) if self.armatured else None
         self.gear = _stack([links[i].gear for i in self.actuated], dtype) if self.actuated else None
         self.gravity = None if _is_zero(gravity) else _stack(gravity, dtype)
+        ranges = tuple(links[i].control_range for i in self.actuated)
+        self.control_ranges = ranges if any(r is not None for r in ranges) else None
+
+    def frame_offsets(self) -> tuple[float, ...]:
+        """Each link frame's angle at ``q = 0`` [rad], the sum of the offsets up to it: ``phi_i = offset_sum_i +``
+        (the revolute ``q_j``, ``j <= i``). Static."""
+        out, acc = [], 0.0
+        for o in self.offsets:
+            acc = acc + o if o != 0.0 else acc
+            out.append(acc)
+        return tuple(out)
 
     @property
     def n(self) -> int:
@@ -247,6 +298,9 @@ class Chain(eqx.Module):
                     damping=0.0 if self.damping is None else self.damping[i],
                     armature=0.0 if self.armature is None else self.armature[i],
                     gear=None if i not in k else self.gear[k[i]],
+                    com_normal=0.0 if self.com_normal is None else self.com_normal[i],
+                    offset=self.offsets[i],
+                    control_range=None if (i not in k or self.control_ranges is None) else self.control_ranges[k[i]],
                 )
             )
         return tuple(out)
@@ -290,6 +344,8 @@ def _check_every_joint_moves_something(links: tuple[Link, ...]) -> None:
     mass = [_concrete(lk.mass) for lk in links]
     length = [_concrete(lk.length) for lk in links]
     com = [length[i] / 2 if lk.com is None and length[i] is not None else _concrete(lk.com) for i, lk in enumerate(links)]
+    # a centre of mass off the link's line is off every joint's axis
+    com = [c if _is_zero(lk.com_normal) else None for c, lk in zip(com, links)]
     inertia = [
         (mass[i] * length[i] ** 2 / 12 if mass[i] is not None and length[i] is not None else None)
         if lk.inertia is None

@@ -194,7 +194,8 @@ def gravity_forces(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array
 
 
 def actuation_matrix(chain: Chain) -> Float[Array, "n m"]:
-    """The actuation matrix ``B``, shape ``(n, m)``: ``B[actuated[k], k] = gear[k]``, zero elsewhere."""
+    """The actuation matrix ``B``, shape ``(n, m)``: ``B[actuated[k], k] = gear[k]``, zero elsewhere. A chain with
+    control ranges applies ``B`` to the clamped control (:func:`lagrange.recursive.clamp_controls`)."""
     B = jnp.zeros((chain.n, chain.m), dtype=chain.mass.dtype)
     for k, j in enumerate(chain.actuated):
         B = B.at[j, k].set(chain.gear[k])
@@ -205,6 +206,7 @@ def _actuation(chain: Chain, u) -> list:
     out = [0.0] * chain.n
     _check(chain, "u", u, chain.m)
     if chain.m:
+        u = recursive.clamp_controls(chain, u)
         for k, j in enumerate(chain.actuated):
             out[j] = s.mul(chain.gear[k], u[..., k])
     return out
@@ -222,8 +224,9 @@ def forward_dynamics(
         chain: the :class:`~lagrange.chain.Chain`.
         q: joint coordinates [rad or m], shape ``(*batch, n)``.
         qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
-        u: controls, shape ``(*batch, m)`` (generalized force ``gear * u`` on each actuated joint);
-            ``None`` (no control) or omitted for an unactuated chain.
+        u: controls, shape ``(*batch, m)`` (generalized force ``gear * u`` on each actuated joint, ``u``
+            first clamped into the joint's ``control_range`` where it has one); ``None`` (no control) or
+            omitted for an unactuated chain.
 
     Returns:
         ``qdd``, shape ``(*batch, n)`` [rad/s^2 or m/s^2].

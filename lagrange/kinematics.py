@@ -16,6 +16,7 @@ from jaxtyping import Array, ArrayLike, Float
 
 from lagrange import _scalar as s
 from lagrange._jet import Jet, sincos
+from lagrange._unitvec import cos_sin
 from lagrange.chain import Chain
 
 
@@ -59,13 +60,16 @@ def frames(chain: Chain, q: Float[ArrayLike, "*batch n"], qd: Float[ArrayLike, "
     sin_phi, cos_phi = Jet.const(0.0), Jet.const(1.0)
     p = (Jet.const(0.0), Jet.const(0.0))
     length_prev = 0.0
+    off = chain.frame_offsets()
+    off_prev = 0.0
+    normal = chain.com_normal
     origin, com, rates, rev = [], [], [], []
     revolute: list[int] = []
     rate = 0.0
     for i, joint in enumerate(chain.joints):
-        # d(phi_{i-1}) = (sin, -cos)
+        # phi is the sum of the revolute q's; link i's frame is at phi + off[i]
         if i > 0:
-            p = _vec_add(p, _vec_scale((sin_phi, -cos_phi), length_prev))
+            p = _vec_add(p, _along(sin_phi, cos_phi, off_prev, length_prev, None))
         qi = Jet.coordinate(i, qs[i], qds[i])
         if joint == "revolute":
             phi = phi + qi
@@ -73,21 +77,36 @@ def frames(chain: Chain, q: Float[ArrayLike, "*batch n"], qd: Float[ArrayLike, "
             rate = s.add(rate, qds[i])
             sin_phi, cos_phi = sincos(phi)
         else:  # prismatic: slide along e(phi_{i-1} + axis)
-            a = chain.axes[i]
-            ca, sa = math.cos(a), math.sin(a)
+            a = chain.axes[i] + off_prev
             if a == 0.0:
                 ex, ez = cos_phi, sin_phi
             else:  # e(phi + a) = cos(a) e(phi) + sin(a) e'(phi), e' = (-sin, cos)
+                ca, sa = cos_sin(a)
                 ex = cos_phi.scale(ca) - sin_phi.scale(sa)
                 ez = sin_phi.scale(ca) + cos_phi.scale(sa)
             p = _vec_add(p, (ex * qi, ez * qi))
         origin.append(p)
-        com.append(_vec_add(p, _vec_scale((sin_phi, -cos_phi), chain.com[i])))
+        com.append(_vec_add(p, _along(sin_phi, cos_phi, off[i], chain.com[i], None if normal is None else normal[i])))
         rates.append(rate if qd is not None else None)
         rev.append(tuple(revolute))
-        length_prev = chain.length[i]
-    tip = _vec_add(p, _vec_scale((sin_phi, -cos_phi), length_prev))
+        length_prev, off_prev = chain.length[i], off[i]
+    tip = _vec_add(p, _along(sin_phi, cos_phi, off_prev, length_prev, None))
     return Frames(origin, com, tip, rates, rev)
+
+
+def _along(sin_phi, cos_phi, off: float, c_d, c_e):
+    """``c_d d(phi + off) + c_e e(phi + off)`` as a pair of jets, with ``d = (sin, -cos)``, ``e = (cos, sin)``
+    (``c_e = None``: none)."""
+    if off != 0.0:
+        co, so = cos_sin(off)
+        c_d, c_e = (
+            s.sub(s.mul(co, c_d), s.mul(so, 0.0 if c_e is None else c_e)),
+            s.add(s.mul(so, c_d), s.mul(co, 0.0 if c_e is None else c_e)),
+        )
+    out = _vec_scale((sin_phi, -cos_phi), c_d)
+    if c_e is not None and not s.is_zero(c_e):
+        out = _vec_add(out, _vec_scale((cos_phi, sin_phi), c_e))
+    return out
 
 
 def positions(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch n+1 2"]:

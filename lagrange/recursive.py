@@ -49,6 +49,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from lagrange import _scalar as s
+from lagrange import _unitvec
 from lagrange.chain import Chain
 
 
@@ -120,12 +121,20 @@ class _Kin:
         sin, cos = jnp.sin(phi), jnp.cos(phi)
         sp, cp = _prev(sin, 0.0), _prev(cos, 1.0)
         lp = _prev(P(chain.length), 0.0)
-        rx, rz = lp * sp, -lp * cp
+        off = np.asarray(chain.frame_offsets())
+        poff = np.concatenate([[0.0], off[:-1]])  # the parent frame's offset
+        if np.any(off != 0):
+            # the parent's tip l d(phi + off) = l cos(off) d(phi) + l sin(off) e(phi)
+            cs = np.array([_unitvec.cos_sin(o) for o in poff])
+            ld, le = lp * P(cs[:, 0]), lp * P(cs[:, 1])
+            rx, rz = ld * sp + le * cp, -ld * cp + le * sp
+        else:
+            rx, rz = lp * sp, -lp * cp
         if rev.all():
             S = (1.0, 0.0, 0.0)
         else:
             pri = P((~rev).astype(float))
-            axes = np.asarray(chain.axes)
+            axes = np.asarray(chain.axes) + poff
             if np.all(axes == 0):
                 ex, ez = cp, sp
             else:  # e(phi + a) = cos a e(phi) - sin a d(phi)
@@ -137,8 +146,17 @@ class _Kin:
 
         m, com = P(chain.mass), P(chain.com)
         self.m = m
-        self.hx, self.hz = m * com * sin, -m * com * cos
-        self.J = P(chain.inertia) + m * com * com
+        if np.any(off != 0) or chain.com_normal is not None:
+            # the centre of mass c_d d(phi + off) + c_e e(phi + off), on d(phi) and e(phi)
+            cn = 0.0 if chain.com_normal is None else P(chain.com_normal)
+            cs = np.array([_unitvec.cos_sin(o) for o in off])
+            co, so = P(cs[:, 0]), P(cs[:, 1])
+            cd, ce = com * co - cn * so, com * so + cn * co
+            self.hx, self.hz = m * (cd * sin + ce * cos), m * (ce * sin - cd * cos)
+            self.J = P(chain.inertia) + m * (com * com + cn * cn)
+        else:
+            self.hx, self.hz = m * com * sin, -m * com * cos
+            self.J = P(chain.inertia) + m * com * com
         self.w = self.vx = self.vz = self.cx = self.cz = self.pA = None
         if qd is None:
             return
@@ -163,10 +181,22 @@ class _Kin:
         )
 
 
+def clamp_controls(chain: Chain, u):
+    """``u`` (shape ``(..., m)``) with each control clamped into its joint's ``control_range``, as MuJoCo clamps a
+    limited ``ctrl``; ``u`` itself for a chain without ranges."""
+    if chain.control_ranges is None:
+        return u
+    inf = float("inf")
+    lo = np.array([-inf if r is None else r[0] for r in chain.control_ranges])
+    hi = np.array([inf if r is None else r[1] for r in chain.control_ranges])
+    return jnp.clip(u, lo.astype(u.dtype), hi.astype(u.dtype))
+
+
 def _actuation(chain: Chain, u, batch, dtype):
     """``B u`` as (n, *batch), or None without control."""
     if u is None or chain.m == 0:
         return None
+    u = clamp_controls(chain, jnp.asarray(u))
     u = jnp.moveaxis(jnp.broadcast_to(u, batch + u.shape[-1:]), -1, 0)
     gu = _param(chain.gear, len(batch)).astype(dtype) * u
     if chain.actuated == tuple(range(chain.n)):

@@ -55,11 +55,23 @@ def per_state(f, chain, *xs):
     return jax.jit(jax.vmap(lambda *x: f(chain, *x)))(*xs)
 
 
-def random_chain(rng, n, damped=0.5, *, cart=False, gravity=None):
+def random_chain(rng, n, damped=0.5, *, cart=False, gravity=None, frames=False):
     """A random chain of n links: mixed joints, random prismatic axes, com, inertia, and
     damping/armature/gear present on random subsets of the joints. ``cart``: link 0 is a prismatic
     cart on the x axis. ``gravity``: fixed, or None for one drawn by ``n`` (``tests/lagrange/test_recursive.py``
-    fixes it by ``n``)."""
+    fixes it by ``n``). ``frames``: every link also gets a frame offset (random, or exactly pi) and a centre of
+    mass off its line."""
+    if frames:
+        chain = random_chain(rng, n, damped, cart=cart, gravity=gravity)
+        links = [
+            Link(
+                lk.joint, lk.mass, lk.length, lk.com, lk.inertia, axis=lk.axis, damping=lk.damping,
+                armature=lk.armature, gear=lk.gear, com_normal=float(rng.uniform(-0.4, 0.4)),
+                offset=float(rng.choice([np.pi, rng.uniform(-np.pi, np.pi)])),
+            )
+            for lk in chain.links()
+        ]
+        return Chain(links, gravity=9.81 if chain.gravity is None else chain.gravity)
     links = []
     for i in range(n):
         base_cart = cart and i == 0

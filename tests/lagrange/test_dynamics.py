@@ -162,6 +162,52 @@ def test_random_chain_matches_euler_lagrange(n):
     assert_close(r["qdd"], r["el_qdd"], rel=1e-13 * max(cond, 10.0), what="qdd")
 
 
+@pytest.mark.parametrize("n", [1, 2, 3, 6])
+def test_frame_offsets_and_off_line_coms_match_euler_lagrange(n):
+    """Link frames turned against their parents (``offset``) and centres of mass off the link line (``com_normal``),
+    on both derivations (unit vectors below ``RECURSIVE_MIN`` links, the recursive algorithms at any size), against
+    the literal derivation, whose forward kinematics writes both in directly."""
+    from lagrange import dynamics, recursive
+
+    rng = np.random.default_rng(70 + n)
+    chain = random_chain(rng, n, frames=True)
+    assert chain.com_normal is not None and any(o != 0.0 for o in chain.offsets)
+    q, qd = states(rng, n, k=4)
+    modules = [recursive] + ([dynamics] if n < dynamics.RECURSIVE_MIN else [])
+
+    @jax.jit
+    @jax.vmap
+    def run(q, qd):
+        out = {
+            "el": (el.mass_matrix(chain, q), el.bias_forces(chain, q, qd), el.bias_forces(chain, q, 0 * qd),
+                   sum(el.energy(chain, q, qd)), el.com_and_angles(chain, q)[0]),
+        }
+        for mod in modules:
+            out[mod.__name__] = (mod.mass_matrix(chain, q), mod.bias_forces(chain, q, qd), mod.gravity_forces(chain, q),
+                                 sum(mod.energy(chain, q, qd)), lg.com_positions(chain, q))
+        return out
+
+    out = run(q, qd)
+    for mod in modules:
+        for name, a, b in zip(("M", "bias", "gravity", "energy", "com"), out[mod.__name__], out["el"]):
+            assert_close(a, b, what=f"{name} ({mod.__name__})")
+
+
+def test_control_range_clamps_before_the_gear():
+    """A control range clamps ``u`` as MuJoCo clamps a limited ``ctrl``: outside it the control has no effect."""
+    links = [Link("prismatic", 1.0, gear=2.0, control_range=(-1.0, 0.5)), Link("revolute", 0.5, 1.0, gear=3.0)]
+    chain = Chain(links)
+    free = Chain([Link("prismatic", 1.0, gear=2.0), Link("revolute", 0.5, 1.0, gear=3.0)])
+    q, qd = jnp.array([0.1, 0.4]), jnp.array([0.3, -0.2])
+    for u, clamped in (([3.0, 7.0], [0.5, 7.0]), ([-4.0, -1.0], [-1.0, -1.0]), ([0.2, 1.0], [0.2, 1.0])):
+        assert_close(lg.forward_dynamics(chain, q, qd, jnp.array(u)), lg.forward_dynamics(free, q, qd, jnp.array(clamped)))
+    assert chain.control_ranges == ((-1.0, 0.5), None) and free.control_ranges is None
+    with pytest.raises(ValueError, match="control_range"):
+        Link("revolute", 1.0, 1.0, control_range=(-1.0, 1.0))  # not actuated
+    with pytest.raises(ValueError, match="control_range"):
+        Link("revolute", 1.0, 1.0, gear=1.0, control_range=(1.0, -1.0))
+
+
 def test_random_chains_cover_every_feature():
     """The random chains above exercise every optional term, so the comparison means something."""
     chains = [chain_results(n)[0] for n in SIZES]

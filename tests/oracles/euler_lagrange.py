@@ -32,14 +32,17 @@ def com_and_angles(chain: Chain, q):
     p = jnp.zeros(2, q.dtype)
     phi = jnp.zeros((), q.dtype)
     coms, phis = [], []
+    normal = jnp.zeros(chain.n, q.dtype) if chain.com_normal is None else chain.com_normal
     for i, joint in enumerate(chain.joints):
         if i > 0:
             p = p + chain.length[i - 1] * _d(phi)
+        parent = phi
+        phi = phi + chain.offsets[i]
         if joint == "revolute":
             phi = phi + q[i]
         else:
-            p = p + q[i] * _e(phi + chain.axes[i])
-        coms.append(p + chain.com[i] * _d(phi))
+            p = p + q[i] * _e(parent + chain.axes[i])
+        coms.append(p + chain.com[i] * _d(phi) + normal[i] * _e(phi))
         phis.append(phi)
     return jnp.stack(coms), jnp.stack(phis)
 
