@@ -15,13 +15,13 @@ x-z conventions map onto MuJoCo's 3D frames as follows:
 
 - Every body frame is the link's frame: origin at the joint, local ``-z`` along the link
   direction ``d(phi)`` and local ``+x`` along the normal ``e(phi)``. Body ``i`` sits at
-  ``(0, 0, -length[i-1])`` in its parent's frame.
+  ``(0, 0, -length[i-1])`` in its parent's frame, turned by the link's ``offset`` about ``(0, -1, 0)``.
 - A revolute joint is a ``hinge`` about ``(0, -1, 0)``: positive ``q`` turns ``d`` from
   ``(0, -1)`` towards ``+x``, as :func:`lagrange.kinematics.positions` does.
-- A prismatic joint is a ``slide`` along ``(cos axis, 0, sin axis)`` in the parent's frame, which
-  is ``e(phi_{i-1} + axis)``.
+- A prismatic joint is a ``slide`` along ``e(phi_{i-1} + axis)``: ``(cos a, 0, sin a)`` in its own
+  body's frame with ``a = axis - offset``.
 - Each body carries an explicit ``<inertial>`` (``inertiafromgeom="false"``): the link's mass
-  at ``(0, 0, -com)`` and ``diaginertia="I I I"`` with ``I`` the planar moment about the centre
+  at ``(com_normal, 0, -com)`` and ``diaginertia="I I I"`` with ``I`` the planar moment about the centre
   of mass. Every hinge turns about the body ``y`` axis, so angular velocities stay along ``y``
   and only the ``y`` moment ever enters the dynamics; the other two are set equal to it only
   because MuJoCo requires a positive-definite inertia that satisfies the triangle inequality.
@@ -30,7 +30,8 @@ x-z conventions map onto MuJoCo's 3D frames as follows:
   from the chain's by at most ``tiny`` times a squared lever arm, and not at all for a zero
   moment on a body that cannot rotate (e.g. a cart below no revolute joint).
 - Joint ``damping`` and ``armature`` are the joint's own; each actuated joint gets one
-  ``<motor>`` with the link's ``gear`` and no control or force limits.
+  ``<motor>`` with the link's ``gear``, its ``control_range`` as ``ctrlrange`` (limited only
+  where the link has one) and no force limits.
 - Geoms (capsules along each link, spheres for zero-length links) are for looking only:
   ``contype="0" conaffinity="0"``, and they carry no mass because the inertials are explicit.
 - ``<custom><numeric name="matrix_inv_iterations" data="0"/></custom>`` makes Brax's
@@ -46,7 +47,7 @@ import math
 import jax
 import numpy as np
 
-from lagrange.chain import Chain
+from lagrange.chain import Chain, Link
 
 INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
 """The MuJoCo integrators :func:`to_mjcf` accepts (Brax loads only ``"Euler"``)."""
@@ -133,14 +134,17 @@ def to_mjcf(
         "  <worldbody>",
     ]
     indent = "    "
+    com_normal = _values(chain, "com_normal")
     for i, joint in enumerate(chain.joints):
         pos = _vec(0, 0, -length[i - 1]) if i > 0 else _vec(0, 0, 0)
-        lines.append(f'{indent}<body name="link{i}" pos="{pos}">')
+        offset = chain.offsets[i]
+        turn = f' axisangle="{_vec(0, -1, 0, offset)}"' if offset != 0.0 else ""
+        lines.append(f'{indent}<body name="link{i}" pos="{pos}"{turn}>')
         inner = indent + "  "
         if joint == "revolute":
             kind, axis = "hinge", _vec(0, -1, 0)
-        else:
-            a = chain.axes[i]
+        else:  # the axis in this body's frame, turned by the offset against the parent's
+            a = chain.axes[i] - offset
             kind, axis = "slide", _vec(math.cos(a), 0, math.sin(a))
         attrs = f'name="q{i}" type="{kind}" pos="0 0 0" axis="{axis}" limited="false"'
         attrs += f' damping="{_num(0.0 if damping is None else damping[i])}"'
@@ -149,7 +153,7 @@ def to_mjcf(
         m = mass[i] if mass[i] > 0 else tiny
         moment = inertia[i] if inertia[i] > 0 else tiny
         lines.append(
-            f'{inner}<inertial pos="{_vec(0, 0, -com[i])}" mass="{_num(m)}" '
+            f'{inner}<inertial pos="{_vec(0.0 if com_normal is None else com_normal[i], 0, -com[i])}" mass="{_num(m)}" '
             f'diaginertia="{_vec(moment, moment, moment)}"/>'
         )
         if length[i] > 0:
@@ -165,10 +169,398 @@ def to_mjcf(
     if chain.actuated:
         lines.append("  <actuator>")
         for k, j in enumerate(chain.actuated):
-            lines.append(
-                f'    <motor name="u{k}" joint="q{j}" gear="{_num(gear[k])}" '
-                'ctrllimited="false" forcelimited="false"/>'
-            )
+            r = None if chain.control_ranges is None else chain.control_ranges[k]
+            limit = 'ctrllimited="false"' if r is None else f'ctrllimited="true" ctrlrange="{_vec(*r)}"'
+            lines.append(f'    <motor name="u{k}" joint="q{j}" gear="{_num(gear[k])}" {limit} forcelimited="false"/>')
         lines.append("  </actuator>")
     lines.append("</mujoco>")
     return "\n".join(lines) + "\n"
+
+
+# --------------------------------------------------------------------------------------------- reading MJCF
+
+LIMITS = ("raise", "ignore")
+"""What :func:`from_mjcf` does with a limited joint: refuse the model, or load it without the limit."""
+
+_TOL = 1e-9  # a geometric tolerance [m or rad]: parallel axes, in-plane directions, zero lengths
+
+
+def _mujoco():
+    try:
+        import mujoco
+    except ImportError as err:  # pragma: no cover - the test extra installs it
+        raise ImportError(
+            "from_mjcf reads models with MuJoCo's own compiler; install it with pip install -e \".[mjcf]\""
+        ) from err
+    return mujoco
+
+
+def _compiled(source):
+    """``source`` (a path, an MJCF string or a compiled ``mujoco.MjModel``) as a compiled model."""
+    mujoco = _mujoco()
+    if isinstance(source, mujoco.MjModel):
+        return source
+    if isinstance(source, str) and source.lstrip().startswith("<"):
+        return mujoco.MjModel.from_xml_string(source)
+    import os
+
+    if isinstance(source, (str, os.PathLike)):
+        path = os.fspath(source)
+        if not os.path.isfile(path):
+            raise FileNotFoundError(f"from_mjcf: no MJCF file at {path!r} (pass a path, an XML string or a mujoco.MjModel)")
+        return mujoco.MjModel.from_xml_path(path)
+    raise TypeError(f"from_mjcf: source must be a path, an MJCF string or a mujoco.MjModel, got {type(source).__name__}")
+
+
+def _name(mujoco, model, kind, i) -> str:
+    name = mujoco.mj_id2name(model, getattr(mujoco.mjtObj, f"mjOBJ_{kind.upper()}"), i)
+    return f"{kind} {name!r}" if name else f"{kind} #{i}"
+
+
+def _refuse(mujoco, model, limits: str) -> None:
+    """Raise for whatever a planar chain cannot reproduce exactly, naming the feature, the element and the way out."""
+    off = model.opt.disableflags
+    bit = mujoco.mjtDisableBit
+    constraints = not off & bit.mjDSBL_CONSTRAINT
+    nm = lambda kind, i: _name(mujoco, model, kind, i)  # noqa: E731
+    if model.nq == 0:
+        raise ValueError("from_mjcf: the model has no joint; a chain needs at least one hinge or slide")
+    for j in range(model.njnt):
+        kind = mujoco.mjtJoint(model.jnt_type[j])
+        if kind not in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
+            raise NotImplementedError(
+                f"from_mjcf: {nm('joint', j)} is a {kind.name[6:].lower()} joint; a planar chain has hinges and slides "
+                "only (model the motion with hinges and slides in one plane)"
+            )
+        if model.jnt_stiffness[j] != 0 and not off & bit.mjDSBL_SPRING:
+            raise NotImplementedError(
+                f"from_mjcf: {nm('joint', j)} has stiffness {model.jnt_stiffness[j]} (a joint spring); the chain has no "
+                "springs: set stiffness=\"0\" or disable springs (<flag spring=\"disable\"/>)"
+            )
+        if model.jnt_limited[j] and constraints and not off & bit.mjDSBL_LIMIT and limits == "raise":
+            raise ValueError(
+                f"from_mjcf: {nm('joint', j)} is limited (range {list(model.jnt_range[j])}); the chain has no joint "
+                "limits. from_mjcf(..., limits=\"ignore\") loads it without them (exact while the joint stays inside its "
+                "range)"
+            )
+    for d in range(model.nv):
+        if model.dof_frictionloss[d] != 0 and constraints and not off & bit.mjDSBL_FRICTIONLOSS:
+            raise NotImplementedError(
+                f"from_mjcf: {nm('joint', model.dof_jntid[d])} has frictionloss {model.dof_frictionloss[d]} (dry "
+                "friction, a constraint); set frictionloss=\"0\" or disable it (<flag frictionloss=\"disable\"/>)"
+            )
+    if model.ntendon:
+        raise NotImplementedError(f"from_mjcf: the model has {model.ntendon} tendon(s) ({nm('tendon', 0)}); a planar "
+                                  "chain has none: remove them")
+    if model.neq and constraints and not off & bit.mjDSBL_EQUALITY:
+        raise NotImplementedError(f"from_mjcf: the model has {model.neq} equality constraint(s) ({nm('equality', 0)}); "
+                                  "a serial chain has none: remove them or disable equality (<flag equality=\"disable\"/>)")
+    if np.any(model.body_gravcomp != 0):
+        b = int(np.flatnonzero(model.body_gravcomp)[0])
+        raise NotImplementedError(f"from_mjcf: {nm('body', b)} has gravcomp {model.body_gravcomp[b]}; remove it")
+    if model.opt.density != 0 or model.opt.viscosity != 0 or np.any(model.opt.wind != 0):
+        raise NotImplementedError("from_mjcf: the model has fluid forces (option density, viscosity or wind non-zero); "
+                                  "set them to 0")
+    if off & bit.mjDSBL_ACTUATION and model.nu:
+        raise NotImplementedError("from_mjcf: actuation is disabled (<flag actuation=\"disable\"/>) but the model has "
+                                  "actuators; remove them or enable actuation")
+    for a in range(model.nu):
+        motor = (
+            model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
+            and model.actuator_dyntype[a] == mujoco.mjtDyn.mjDYN_NONE
+            and model.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_FIXED
+            and model.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_NONE
+        )
+        if not motor:
+            raise NotImplementedError(
+                f"from_mjcf: {nm('actuator', a)} is not a motor on a joint (force = gain * ctrl, no dynamics, no bias); "
+                "a chain's actuators are motors: replace it with <motor joint=... gear=...>"
+            )
+        if model.actuator_forcelimited[a]:
+            raise NotImplementedError(f"from_mjcf: {nm('actuator', a)} is force-limited; the chain clamps controls "
+                                      "(ctrlrange) but not forces: remove forcerange or express it as a ctrlrange")
+        if model.actuator_gear[a, 0] * model.actuator_gainprm[a, 0] <= 0:
+            raise NotImplementedError(
+                f"from_mjcf: {nm('actuator', a)} has gear * gain = {model.actuator_gear[a, 0] * model.actuator_gainprm[a, 0]}"
+                "; a chain's gears are > 0: flip the joint's axis or the gear's sign in the model"
+            )
+    joints = model.actuator_trnid[: model.nu, 0]
+    if len(set(joints.tolist())) < len(joints):
+        j = int(next(x for x in joints if list(joints).count(x) > 1))
+        raise NotImplementedError(f"from_mjcf: {nm('joint', j)} has more than one actuator; a chain's joint has one "
+                                  "motor: merge them")
+    order = [int(j) for j in joints]
+    for a in range(1, len(order)):
+        if order[a] < order[a - 1]:
+            raise NotImplementedError(
+                f"from_mjcf: {nm('actuator', a)} drives {nm('joint', order[a])}, before {nm('actuator', a - 1)}'s "
+                f"{nm('joint', order[a - 1])}: with u = ctrl a chain's actuators are declared in joint order; reorder "
+                "the <actuator> elements"
+            )
+    _refuse_contacts(mujoco, model, nm)
+
+
+def _refuse_contacts(mujoco, model, nm) -> None:
+    """Refuse a model in which a contact can occur: one explicit ``<pair>``, or two geoms whose contype/conaffinity
+    bits match and that MuJoCo's body filters do not exclude (the same rules as its collision driver)."""
+    off = model.opt.disableflags
+    bit = mujoco.mjtDisableBit
+    if off & bit.mjDSBL_CONSTRAINT or off & bit.mjDSBL_CONTACT:
+        return
+    way_out = ("disable contacts (<option><flag contact=\"disable\"/></option>) or set contype=\"0\" conaffinity=\"0\" "
+               "on the geoms; the chain has no contacts")
+    if model.npair:
+        raise NotImplementedError(f"from_mjcf: the model has {model.npair} explicit contact pair(s); {way_out}")
+    excluded = {(int(model.exclude_signature[k] >> 16), int(model.exclude_signature[k] & 0xFFFF))
+                for k in range(model.nexclude)}
+    weld = model.body_weldid
+    parent_weld = weld[model.body_parentid]
+    filter_parent = not off & bit.mjDSBL_FILTERPARENT
+    for g1 in range(model.ngeom):
+        for g2 in range(g1 + 1, model.ngeom):
+            if not (model.geom_contype[g1] & model.geom_conaffinity[g2] or model.geom_contype[g2] & model.geom_conaffinity[g1]):
+                continue
+            b1, b2 = model.geom_bodyid[g1], model.geom_bodyid[g2]
+            w1, w2 = weld[b1], weld[b2]
+            if w1 == w2:
+                continue
+            if filter_parent and w1 != 0 and w2 != 0 and (w1 == parent_weld[b2] or w2 == parent_weld[b1]):
+                continue
+            if (min(b1, b2), max(b1, b2)) in excluded or (max(b1, b2), min(b1, b2)) in excluded:
+                continue
+            raise NotImplementedError(f"from_mjcf: {nm('geom', g1)} and {nm('geom', g2)} can collide; {way_out}")
+
+
+def _plane(mujoco, model, data):
+    """The chain's plane as world unit vectors ``(x, y, z)``, right-handed, with every hinge turning about ``-y``
+    (so that ``q = qpos``) and gravity's in-plane part along ``-z``; and that part's magnitude."""
+    nm = lambda kind, i: _name(mujoco, model, kind, i)  # noqa: E731
+    hinges = [j for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+    slides = [j for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE]
+    g = np.zeros(3) if model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY else np.array(model.opt.gravity)
+    axes = {j: np.array(data.xaxis[j]) for j in range(model.njnt)}
+    if hinges:
+        n = axes[hinges[0]]
+        for j in hinges[1:]:
+            if np.linalg.norm(np.cross(axes[j], n)) > _TOL:
+                raise NotImplementedError(
+                    f"from_mjcf: {nm('joint', j)}'s axis {axes[j].round(6).tolist()} is not parallel to "
+                    f"{nm('joint', hinges[0])}'s {n.round(6).tolist()}: the chain leaves the plane"
+                )
+            if axes[j] @ n < 0:
+                raise NotImplementedError(
+                    f"from_mjcf: {nm('joint', j)} turns about the opposite axis to {nm('joint', hinges[0])}; with "
+                    "q = qpos a chain's hinges share one sense: flip the joint's axis in the model (and negate its "
+                    "coordinate)"
+                )
+    else:
+        plane = [axes[j] for j in slides]
+        cross = [np.cross(a, b) for a in plane for b in plane if np.linalg.norm(np.cross(a, b)) > _TOL]
+        n = cross[0] if cross else np.cross(plane[0], g) if np.linalg.norm(np.cross(plane[0], g)) > _TOL else None
+        if n is None:  # one slide direction, along gravity or without it: any plane through it
+            n = np.cross(plane[0], [1.0, 0, 0] if abs(plane[0][0]) < 0.9 else [0, 1.0, 0])
+        n = n / np.linalg.norm(n)
+    for j in slides:
+        if abs(axes[j] @ n) > _TOL:
+            raise NotImplementedError(f"from_mjcf: {nm('joint', j)} slides along {axes[j].round(6).tolist()}, out of "
+                                      f"the plane normal to {n.round(6).tolist()} in which the chain moves")
+    y = -n
+    g_in = g - (g @ n) * n
+    G = float(np.linalg.norm(g_in))
+    if G > 0:
+        z = -g_in / G
+    else:  # no gravity in the plane (a horizontal reacher): world z, else x, projected onto it
+        for w in (np.array([0, 0, 1.0]), np.array([1.0, 0, 0])):
+            z = w - (w @ n) * n
+            if np.linalg.norm(z) > 1e-6:
+                break
+        z = z / np.linalg.norm(z)
+    x = np.cross(y, z)
+    return (x, y, z), G
+
+
+def _d(theta):
+    return np.array([math.sin(theta), -math.cos(theta)])
+
+
+def _e(theta):
+    return np.array([math.cos(theta), math.sin(theta)])
+
+
+def _wrap(a: float) -> float:
+    """``a`` in (-pi, pi]."""
+    a = math.remainder(a, 2 * math.pi)
+    return math.pi if a == -math.pi else a
+
+
+def from_mjcf(source, *, limits: str = "raise") -> Chain:
+    """A planar serial chain read from MJCF, with ``q`` equal to MuJoCo's ``qpos``.
+
+    The model is compiled by MuJoCo itself (inertias from geoms, defaults classes, ``fromto``, degrees,
+    includes), so this reads the compiled ``mujoco.MjModel`` at ``qpos = 0``. The contract: ``q`` is ``qpos``
+    (same order, sign and zero), ``qd`` is ``qvel``, ``u`` is ``ctrl`` (actuator order, clamped into
+    ``ctrlrange`` where the actuator is ``ctrllimited``); ``mass_matrix``, ``bias_forces`` and
+    ``forward_dynamics`` then equal ``mj_fullM``, ``qfrc_bias - qfrc_passive`` and ``qacc``, and
+    :func:`solver_of` names the integrator that reproduces ``mj_step``.
+
+    How a model maps onto a chain:
+
+    - The plane is the one normal to the hinges' common axis (or spanned by the slides); its ``z`` is
+      against gravity's in-plane part and :attr:`Chain.gravity` that part's magnitude (gravity along the
+      normal does no work on a planar chain). Positions (:func:`lagrange.positions`) are in this plane,
+      relative to the first joint's anchor at ``qpos = 0``.
+    - One link per joint, in ``qpos`` order. A body with several joints becomes massless links for all
+      but its last joint; bodies without a joint are merged into the body they are welded to (mass,
+      centre of mass, and the moment of inertia about the plane's normal, by the parallel-axis theorem).
+    - Each link's frame points from its joint's anchor to the next joint's (frame offsets carry the
+      angles between them at ``qpos = 0``, a hinge's ``ref`` included); a slide's ``ref`` shifts where it
+      sits at ``qpos = 0``. Joint ``damping`` and ``armature`` are the joint's own; each motor's
+      ``gear * gain`` is the link's gear.
+
+    Args:
+        source: a path to an MJCF file, an MJCF string, or a compiled ``mujoco.MjModel``.
+        limits: ``"raise"`` (refuse a model with a limited joint) or ``"ignore"`` (load it without the
+            limits: exact while every joint stays inside its range).
+
+    Returns:
+        The :class:`~lagrange.chain.Chain` (float64 where JAX's x64 is enabled).
+
+    Raises:
+        ImportError: without MuJoCo (``pip install -e ".[mjcf]"``).
+        ValueError: for a limited joint with ``limits="raise"``, a bad ``limits``, a model without joints.
+        NotImplementedError: naming the element, for what a planar chain cannot reproduce: ball or free
+            joints, hinges that are not parallel or turn in opposite senses, slides out of the plane,
+            branches (a second chain or a tree), contacts that can occur, joint springs, friction loss,
+            tendons, equality constraints, gravity compensation, fluid forces, actuators other than motors
+            with a positive gear, force limits, two motors on one joint.
+    """
+    if limits not in LIMITS:
+        raise ValueError(f"from_mjcf: limits must be one of {LIMITS}, got {limits!r}")
+    mujoco = _mujoco()
+    model = _compiled(source)
+    _refuse(mujoco, model, limits)
+    nm = lambda kind, i: _name(mujoco, model, kind, i)  # noqa: E731
+
+    # the serial structure: each joint's body, and the jointed body each body hangs from
+    weld, parent = model.body_weldid, model.body_parentid
+    body = [int(model.jnt_bodyid[j]) for j in range(model.njnt)]
+    for j in range(model.njnt):
+        if j > 0 and body[j] == body[j - 1]:
+            continue
+        hangs_from = int(weld[parent[body[j]]])
+        expected = 0 if j == 0 else body[j - 1]
+        if hangs_from != expected:
+            where = "the world" if hangs_from == 0 else nm("body", hangs_from)
+            after = f"{nm('body', expected)}, which carries the joint before it ({nm('joint', j - 1)})" if j else "the world"
+            raise NotImplementedError(
+                f"from_mjcf: {nm('body', body[j])} ({nm('joint', j)}) hangs from {where}, not from {after}: the model "
+                "is a tree or has a second chain, and a Chain is one serial chain; remove the branch (or load each "
+                "branch as a model of its own)"
+            )
+
+    data = mujoco.MjData(model)
+    data.qpos[:] = 0.0
+    mujoco.mj_kinematics(model, data)
+    (X, Y, Z), G = _plane(mujoco, model, data)
+    origin = np.array(data.xanchor[0])
+    to2 = lambda v: np.array([v @ X, v @ Z])  # noqa: E731  world vector -> plane (x, z)
+
+    # each jointed body's rigid group (itself and the bodies welded to it): mass, centre of mass, planar moment
+    groups = {}
+    for b in sorted(set(body)):
+        members = [k for k in range(model.nbody) if weld[k] == b]
+        m = float(sum(model.body_mass[k] for k in members))
+        c = sum(model.body_mass[k] * np.array(data.xipos[k]) for k in members) / m if m > 0 else np.array(data.xpos[b])
+        inertia = 0.0
+        for k in members:
+            R = np.array(data.ximat[k]).reshape(3, 3)
+            inertia += float(np.sum(model.body_inertia[k] * (R.T @ Y) ** 2))
+            r = to2(np.array(data.xipos[k]) - c)
+            inertia += float(model.body_mass[k] * (r @ r))
+        groups[b] = (m, to2(c - origin), inertia)
+
+    n = model.njnt
+    anchor = [to2(np.array(data.xanchor[j]) - origin) for j in range(n)]
+    last_of_body = [j == n - 1 or body[j + 1] != body[j] for j in range(n)]
+    actuator = {int(model.actuator_trnid[a, 0]): a for a in range(model.nu)}
+    clamp = not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL
+    damper = not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_DAMPER
+    links, theta_prev = [], 0.0
+    for j in range(n):
+        m, c, inertia = groups[body[j]] if last_of_body[j] else (0.0, anchor[j], 0.0)
+        tip = anchor[j + 1] - anchor[j] if j + 1 < n else np.zeros(2)
+        length = float(np.hypot(*tip))
+        arm = c - anchor[j]
+        if length > _TOL:
+            theta = math.atan2(tip[0], -tip[1])
+        elif m > 0 and np.hypot(*arm) > _TOL:
+            theta, length = math.atan2(arm[0], -arm[1]), 0.0
+        else:
+            theta, length = theta_prev, 0.0
+        kw = {}
+        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
+            s = to2(np.array(data.xaxis[j]))
+            kw["axis"] = _wrap(math.atan2(s[1], s[0]) - theta_prev)
+        d = int(model.jnt_dofadr[j])
+        if j in actuator:
+            a = actuator[j]
+            kw["gear"] = float(model.actuator_gear[a, 0] * model.actuator_gainprm[a, 0])
+            if clamp and model.actuator_ctrllimited[a]:
+                kw["control_range"] = tuple(float(x) for x in model.actuator_ctrlrange[a])
+        links.append(
+            Link(
+                "revolute" if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE else "prismatic",
+                m,
+                length,
+                com=float(arm @ _d(theta)),
+                inertia=inertia,
+                damping=float(model.dof_damping[d]) if damper else 0.0,
+                armature=float(model.dof_armature[d]),
+                com_normal=float(arm @ _e(theta)),
+                offset=_wrap(theta - theta_prev),
+                **kw,
+            )
+        )
+        theta_prev = theta
+    return Chain(links, gravity=G)
+
+
+def mujoco_rollout(source, q0, qd0, controls):
+    """MuJoCo's own ``mj_step`` rollout of a model from ``(q0, qd0)`` under ``controls`` (``(T, nu)``, one row per
+    step): the states ``(T + 1, nq + nv)`` as rows ``(qpos, qvel)`` and whether MuJoCo met a constraint on the way (a
+    joint limit or a contact, which a chain from :func:`from_mjcf` does not have). For cross-checks and for data to
+    identify a chain from (:func:`optim.identify.identify`)."""
+    mujoco = _mujoco()
+    model = _compiled(source)
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = q0, qd0
+    controls = np.asarray(controls, dtype=float).reshape(-1, model.nu)
+    states, met = [np.concatenate([data.qpos, data.qvel])], False
+    for u in controls:
+        data.ctrl[:] = u
+        mujoco.mj_step(model, data)
+        met |= data.nefc > 0
+        states.append(np.concatenate([data.qpos, data.qvel]))
+    return np.array(states), bool(met)
+
+
+def solver_of(source):
+    """``(solver, timestep)``: the :mod:`lagrange.solvers` integrator that reproduces the model's ``mj_step`` and its
+    ``option/timestep`` [s]. MuJoCo's ``Euler`` (damping implicit, as ``eulerdamp`` leaves it) is
+    :class:`lagrange.SemiImplicitEuler`; its ``RK4`` is :class:`lagrange.RK4`. ``implicit``, ``implicitfast`` and
+    ``Euler`` with ``eulerdamp`` disabled on a damped model have no counterpart and raise ``NotImplementedError``."""
+    from lagrange.solvers import RK4, SemiImplicitEuler
+
+    mujoco = _mujoco()
+    model = _compiled(source)
+    kind = mujoco.mjtIntegrator(model.opt.integrator)
+    dt = float(model.opt.timestep)
+    if kind == mujoco.mjtIntegrator.mjINT_RK4:
+        return RK4(), dt
+    if kind == mujoco.mjtIntegrator.mjINT_EULER:
+        if model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP and np.any(model.dof_damping != 0):
+            raise NotImplementedError("solver_of: Euler with eulerdamp disabled treats damping explicitly, which no "
+                                      "lagrange solver does; enable eulerdamp or use RK4")
+        return SemiImplicitEuler(), dt
+    raise NotImplementedError(f"solver_of: MuJoCo's {kind.name[6:]} integrator has no lagrange counterpart; use Euler "
+                              "(lagrange.SemiImplicitEuler) or RK4 (lagrange.RK4)")
