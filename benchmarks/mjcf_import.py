@@ -1,0 +1,123 @@
+"""How exactly ``from_mjcf`` reproduces the planar models of dm_control, Gymnasium and Brax: errors against MuJoCo.
+
+    python -m benchmarks.mjcf_import
+
+For each model: the mass matrix (``mj_fullM``), the bias forces (``qfrc_bias - qfrc_passive``) and ``qacc`` at 32
+random in-range states, and the worst of 8 rollouts of 100 steps with the model's own integrator
+(``solver_of``) against ``mj_step`` under small random controls (a rollout on which MuJoCo meets a constraint is drawn
+again, since the chain has no joint limits); errors relative, ``max|a - b| / max(1, max|b|)``, float64. Gymnasium's
+reacher is listed with the reason it is refused. Writes ``benchmarks/results/mjcf_import.{json,md}``.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import pathlib
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+import jax.numpy as jnp  # noqa: E402
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+
+import lagrange as lg  # noqa: E402
+from lagrange.interop.mjcf import from_mjcf, solver_of  # noqa: E402
+
+RESULTS = pathlib.Path(__file__).parent / "results"
+
+
+def _dir(package: str, *parts: str) -> pathlib.Path:
+    return pathlib.Path(importlib.util.find_spec(package).submodule_search_locations[0]).joinpath(*parts)
+
+
+MODELS = {
+    "dm_control acrobot": ("dm_control", "suite", "acrobot.xml"),
+    "dm_control cartpole": ("dm_control", "suite", "cartpole.xml"),
+    "dm_control pendulum": ("dm_control", "suite", "pendulum.xml"),
+    "dm_control reacher": ("dm_control", "suite", "reacher.xml"),
+    "Gymnasium inverted pendulum": ("gymnasium", "envs", "mujoco", "assets", "inverted_pendulum.xml"),
+    "Gymnasium inverted double pendulum": ("gymnasium", "envs", "mujoco", "assets", "inverted_double_pendulum.xml"),
+    "Gymnasium reacher": ("gymnasium", "envs", "mujoco", "assets", "reacher.xml"),
+    "Brax inverted pendulum": ("brax", "envs", "assets", "inverted_pendulum.xml"),
+    "Brax inverted double pendulum": ("brax", "envs", "assets", "inverted_double_pendulum.xml"),
+}
+
+
+def rel(a, b) -> float:
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return float(np.max(np.abs(a - b)) / max(1.0, float(np.max(np.abs(b)))))
+
+
+def states(model, rng, k, scale):
+    lo = np.where(model.jnt_limited, model.jnt_range[:, 0], -np.pi)
+    hi = np.where(model.jnt_limited, model.jnt_range[:, 1], np.pi)
+    return (rng.uniform(0.9 * scale * lo, 0.9 * scale * hi, (k, model.nq)), scale * rng.uniform(-2, 2, (k, model.nv)),
+            rng.uniform(-2, 2, (k, model.nu)))
+
+
+def measure(path: pathlib.Path) -> dict:
+    model = mujoco.MjModel.from_xml_path(str(path))
+    chain = from_mjcf(path, limits="ignore")
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(0)
+    q, qd, u = states(model, rng, 32, 1.0)
+    ours = jax.jit(jax.vmap(lambda q, qd, u: (lg.mass_matrix(chain, q), lg.bias_forces(chain, q, qd),
+                                              lg.forward_dynamics(chain, q, qd, u if chain.m else None))))(
+        jnp.asarray(q), jnp.asarray(qd), jnp.asarray(u))
+    err = {"M": 0.0, "bias": 0.0, "qacc": 0.0}
+    for k in range(len(q)):
+        data.qpos[:], data.qvel[:], data.ctrl[:] = q[k], qd[k], u[k]
+        mujoco.mj_forward(model, data)
+        M = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, data, M)
+        for name, a, b in zip(err, (o[k] for o in ours), (M, data.qfrc_bias - data.qfrc_passive, data.qacc)):
+            err[name] = max(err[name], rel(a, b))
+    solver, dt = solver_of(model)
+    rollout, done = 0.0, 0
+    while done < 8:
+        q0, qd0, _ = states(model, rng, 1, 0.05)
+        us = rng.uniform(-0.3, 0.3, (100, model.nu))
+        mujoco.mj_resetData(model, data)
+        data.qpos[:], data.qvel[:] = q0[0], qd0[0]
+        xs, clear = [], True
+        for k in range(100):
+            data.ctrl[:] = us[k]
+            mujoco.mj_step(model, data)
+            clear &= data.nefc == 0
+            xs.append(np.concatenate([data.qpos, data.qvel]))
+        if not clear:
+            continue
+        tr = lg.simulate(chain, jnp.asarray(q0[0]), jnp.asarray(qd0[0]), jnp.asarray(us) if chain.m else None, dt,
+                         solver, steps=100)
+        rollout = max(rollout, rel(np.concatenate([tr.q[1:], tr.qd[1:]], axis=1), np.array(xs)))
+        done += 1
+    return dict(joints=list(chain.joints), integrator=type(solver).__name__, timestep=dt, **err, rollout=rollout)
+
+
+def main():
+    rows = {}
+    for name, parts in MODELS.items():
+        try:
+            rows[name] = measure(_dir(*parts))
+        except NotImplementedError as err:
+            rows[name] = {"refused": str(err)}
+        print(name, rows[name])
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "mjcf_import.json").write_text(json.dumps(rows, indent=2))
+    lines = ["| model | joints | integrator | M | bias | qacc | 100-step rollout |", "|---|---|---|---:|---:|---:|---:|"]
+    for name, r in rows.items():
+        if "refused" in r:
+            lines.append(f"| {name} | refused: its target is a second chain hanging from the world | | | | | |")
+            continue
+        joints = ", ".join("slide" if j == "prismatic" else "hinge" for j in r["joints"])
+        lines.append(f"| {name} | {joints} | {r['integrator']} ({r['timestep']} s) | {r['M']:.0e} | {r['bias']:.0e} "
+                     f"| {r['qacc']:.0e} | {r['rollout']:.0e} |")
+    (RESULTS / "mjcf_import.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,306 @@
+"""``from_mjcf``: the planar models that ship with dm_control, Gymnasium and Brax, read through MuJoCo's compiler,
+against MuJoCo itself (``q = qpos``, ``qd = qvel``, ``u = ctrl``): the mass matrix (``mj_fullM``), the bias forces
+(``qfrc_bias - qfrc_passive``) and ``qacc`` at random in-range states to 1e-10 relative, and 30-step rollouts with the
+model's own integrator (``solver_of``) to 1e-9; a hand-written model with every feature the import maps (multi-joint
+bodies, jointless bodies, rotated frames, ``ref``, armature, degrees, ``fromto``, an off-line centre of mass, in-plane
+gravity); the round trip through ``to_mjcf``; and the refusals, each naming the feature and the element."""
+
+from __future__ import annotations
+
+import importlib.util
+import pathlib
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+import pytest
+
+import lagrange as lg
+from lagrange.interop.mjcf import from_mjcf, mujoco_rollout, solver_of, to_mjcf
+from tests.helpers import rel
+
+EXACT = 1e-10
+ROLLOUT = 1e-9
+
+
+def _package_dir(name: str) -> pathlib.Path:
+    return pathlib.Path(importlib.util.find_spec(name).submodule_search_locations[0])
+
+
+DMC = _package_dir("dm_control") / "suite"
+GYM = _package_dir("gymnasium") / "envs" / "mujoco" / "assets"
+BRAX = _package_dir("brax") / "envs" / "assets"
+
+# every planar model of the three suites (Gymnasium's reacher is refused: its target is a second subtree)
+MODELS = {
+    "dm_control/acrobot": DMC / "acrobot.xml",
+    "dm_control/cartpole": DMC / "cartpole.xml",
+    "dm_control/pendulum": DMC / "pendulum.xml",
+    "dm_control/reacher": DMC / "reacher.xml",
+    "gymnasium/inverted_pendulum": GYM / "inverted_pendulum.xml",
+    "gymnasium/inverted_double_pendulum": GYM / "inverted_double_pendulum.xml",
+    "brax/inverted_pendulum": BRAX / "inverted_pendulum.xml",
+    "brax/inverted_double_pendulum": BRAX / "inverted_double_pendulum.xml",
+}
+
+# a model with every feature the import maps onto a chain: a slide with ref and armature along a tilted axis, a
+# body turned about the plane's normal (euler, degrees), a hinge with ref, a centre of mass off the link line, a body
+# with two joints, a jointless body merged into its parent, gravity with an in-plane tilt and a normal part,
+# inertias from geoms (fromto), a limited control range on one motor, damping everywhere
+KITCHEN_SINK = """
+<mujoco model="kitchen_sink">
+  <compiler angle="degree" inertiafromgeom="true"/>
+  <option timestep="0.005" integrator="RK4" gravity="0.7 -0.4 -9.3">
+    <flag contact="disable"/>
+  </option>
+  <default><joint damping="0.03"/><geom size="0.04"/></default>
+  <worldbody>
+    <body name="cart" pos="0.3 0 1.2" euler="0 20 0">
+      <joint name="slide" type="slide" axis="1 0 0.2" ref="0.15" armature="0.02"/>
+      <geom type="box" size="0.2 0.1 0.05" mass="2"/>
+      <body name="arm" pos="0.1 0 0" euler="0 -35 0">
+        <joint name="shoulder" type="hinge" axis="0 1 0" ref="12"/>
+        <geom type="capsule" fromto="0 0 0 0.1 0 0.7" mass="0.8"/>
+        <geom type="sphere" pos="0.15 0 0.35" size="0.06" mass="0.3"/>
+        <body name="forearm" pos="0.1 0 0.7" euler="0 50 0">
+          <joint name="elbow_slide" type="slide" axis="0 0 1" armature="0.01"/>
+          <joint name="elbow" type="hinge" axis="0 1 0" pos="0 0 0.05"/>
+          <geom type="capsule" fromto="0 0 0 0 0 0.5" mass="0.5"/>
+          <body name="hand" pos="0 0.02 0.5" euler="0 10 0">
+            <geom type="box" size="0.05 0.05 0.08" pos="0.03 0 0.02" mass="0.2"/>
+          </body>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <motor joint="slide" gear="5" ctrllimited="true" ctrlrange="-1 2"/>
+    <motor joint="shoulder" gear="3"/>
+    <motor joint="elbow" gear="1.5"/>
+  </actuator>
+</mujoco>
+"""
+
+
+def _load(source, **kw):
+    if isinstance(source, str):
+        model = mujoco.MjModel.from_xml_string(source)
+    else:
+        model = mujoco.MjModel.from_xml_path(str(source))
+    return model, from_mjcf(source, **kw)
+
+
+def _random_states(model, rng, k=6, scale=1.0):
+    """States inside every joint's range (the limits are loaded as ``limits="ignore"``), velocities scaled by
+    ``scale`` and positions by ``0.9 scale`` of the range."""
+    lo = np.where(model.jnt_limited, model.jnt_range[:, 0], -np.pi)
+    hi = np.where(model.jnt_limited, model.jnt_range[:, 1], np.pi)
+    q = rng.uniform(0.9 * min(scale, 1.0) * lo, 0.9 * min(scale, 1.0) * hi, (k, model.nq))
+    qd = scale * rng.uniform(-2, 2, (k, model.nv))
+    u = rng.uniform(-2, 2, (k, model.nu))  # beyond the control ranges too: both clamp
+    return q, qd, u
+
+
+def _mujoco_terms(model, q, qd, u):
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:], data.ctrl[:] = q, qd, u
+    mujoco.mj_forward(model, data)
+    M = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, M)
+    return M, data.qfrc_bias - data.qfrc_passive, np.array(data.qacc)
+
+
+def _ours(chain, q, qd, u):
+    u = jnp.asarray(u) if chain.m else None
+    q, qd = jnp.asarray(q), jnp.asarray(qd)
+    return lg.mass_matrix(chain, q), lg.bias_forces(chain, q, qd), lg.forward_dynamics(chain, q, qd, u)
+
+
+def _check_terms(model, chain, seed=0):
+    q, qd, u = _random_states(model, np.random.default_rng(seed))
+    ours = jax.vmap(lambda *x: _ours(chain, *x))(jnp.asarray(q), jnp.asarray(qd), jnp.asarray(u))
+    for k in range(len(q)):
+        for name, a, b in zip(("M", "bias", "qacc"), (o[k] for o in ours), _mujoco_terms(model, q[k], qd[k], u[k])):
+            assert rel(a, b) <= EXACT, f"{name} at state {k}: {rel(a, b):.1e}"
+
+
+def _check_rollout(model, chain, seed=1, steps=30):
+    """``steps`` of ``mj_step`` against ``lagrange.simulate`` with ``solver_of``'s integrator, from an in-range state
+    under small controls; MuJoCo must meet no constraint on the way (``nefc == 0``), or the comparison would not be
+    of the same system."""
+    rng = np.random.default_rng(seed)
+    q0, qd0, _ = _random_states(model, rng, k=1, scale=0.05)
+    us = rng.uniform(-0.3, 0.3, (steps, model.nu))
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = q0[0], qd0[0]
+    qs, qds = [], []
+    for k in range(steps):
+        data.ctrl[:] = us[k]
+        mujoco.mj_step(model, data)
+        assert data.nefc == 0, "the rollout met a constraint; pick a calmer state"
+        qs.append(np.array(data.qpos))
+        qds.append(np.array(data.qvel))
+    solver, dt = solver_of(model)
+    traj = lg.simulate(chain, jnp.asarray(q0[0]), jnp.asarray(qd0[0]), jnp.asarray(us) if chain.m else None, dt,
+                       solver, steps=steps)
+    assert rel(np.asarray(traj.q)[1:], np.array(qs)) <= ROLLOUT
+    assert rel(np.asarray(traj.qd)[1:], np.array(qds)) <= ROLLOUT
+
+
+@pytest.mark.parametrize("name", list(MODELS))
+def test_suite_models_match_mujoco(name):
+    model, chain = _load(MODELS[name], limits="ignore")
+    assert chain.n == model.nq == model.nv and chain.m == model.nu
+    _check_terms(model, chain)
+    _check_rollout(model, chain)
+
+
+def test_kitchen_sink_matches_mujoco():
+    model, chain = _load(KITCHEN_SINK)
+    assert chain.joints == ("prismatic", "revolute", "prismatic", "revolute")
+    assert chain.com_normal is not None and any(o != 0 for o in chain.offsets)
+    assert chain.armature is not None and chain.control_ranges == ((-1.0, 2.0), None, None)
+    assert np.isclose(float(chain.gravity), np.hypot(0.7, 9.3))  # the plane is x-z: the y part does no work
+    assert chain.actuated == (0, 1, 3) and np.allclose(chain.gear, [5.0, 3.0, 1.5])
+    _check_terms(model, chain)
+    _check_rollout(model, chain)
+
+
+def test_sources_and_solvers():
+    """A path, an XML string and a compiled model give the same chain; the integrators map as documented."""
+    path = MODELS["dm_control/acrobot"]
+    model = mujoco.MjModel.from_xml_path(str(path))
+    chains = [from_mjcf(path), from_mjcf(str(path)), from_mjcf(model), from_mjcf(path.read_text().replace(
+        'file="./common', f'file="{DMC}/common'))]
+    for c in chains[1:]:
+        assert jax.tree_util.tree_all(jax.tree_util.tree_map(lambda a, b: np.array_equal(a, b), chains[0], c))
+    assert isinstance(solver_of(model)[0], lg.RK4) and solver_of(model)[1] == 0.01
+    assert isinstance(solver_of(MODELS["dm_control/pendulum"])[0], lg.SemiImplicitEuler)
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    with pytest.raises(NotImplementedError, match="IMPLICITFAST.*Euler"):
+        solver_of(model)
+    with pytest.raises(FileNotFoundError, match="no MJCF file"):
+        from_mjcf("/no/such/model.xml")
+    with pytest.raises(TypeError, match="source must be"):
+        from_mjcf(3.0)
+    with pytest.raises(ValueError, match=r"limits must be one of \('raise', 'ignore'\)"):
+        from_mjcf(path, limits="clip")
+
+
+@pytest.mark.parametrize("name", list(MODELS))
+def test_round_trip_through_to_mjcf(name):
+    """``to_mjcf(from_mjcf(x))`` is the same system as ``x``: equal ``qacc`` (and ``M``, bias) at random states."""
+    model, chain = _load(MODELS[name], limits="ignore")
+    again = mujoco.MjModel.from_xml_string(to_mjcf(chain, timestep=float(model.opt.timestep)))
+    q, qd, u = _random_states(model, np.random.default_rng(3))
+    for k in range(len(q)):
+        for a, b in zip(_mujoco_terms(again, q[k], qd[k], u[k]), _mujoco_terms(model, q[k], qd[k], u[k])):
+            assert rel(a, b) <= EXACT
+    assert jax.tree_util.tree_all(jax.tree_util.tree_map(
+        lambda a, b: np.allclose(a, b, rtol=1e-12, atol=1e-15), chain, from_mjcf(to_mjcf(chain))))
+
+
+def _chain_xml(joints: str, body_extra: str = "", model_extra: str = "", option: str = "", child: str = "",
+               world: str = "") -> str:
+    return f"""<mujoco>
+  <option{option}/>
+  <worldbody>
+    <body name="a">
+      {joints}
+      <geom name="ga" type="capsule" fromto="0 0 0 0 0 -1" size="0.05" contype="0" conaffinity="0"/>
+      <body name="b" pos="0 0 -1">
+        <joint name="j2" type="hinge" axis="0 1 0"/>
+        <geom name="gb" type="capsule" fromto="0 0 0 0 0 -1" size="0.05" contype="0" conaffinity="0"/>
+        {body_extra}
+      </body>
+      {child}
+    </body>
+    {world}
+  </worldbody>
+  {model_extra}
+</mujoco>"""
+
+
+HINGE = '<joint name="j1" type="hinge" axis="0 1 0"/>'
+GC = '<geom name="gc" type="sphere" size="0.1" pos="0 0 -1"/>'  # on the tip of link b, colliding by default
+GW = '<geom name="gw" type="plane" size="5 5 1" pos="0 0 -3"/>'  # a floor
+
+REFUSALS = [
+    ("ball joint", _chain_xml('<joint name="j1" type="ball"/>'), NotImplementedError, "joint 'j1' is a ball joint"),
+    ("free joint", _chain_xml('<freejoint name="j1"/>'), NotImplementedError, "joint 'j1' is a free joint"),
+    ("tilted hinge", _chain_xml('<joint name="j1" type="hinge" axis="1 1 0"/>'), NotImplementedError,
+     "not parallel.*leaves the plane"),
+    ("opposite hinge", _chain_xml('<joint name="j1" type="hinge" axis="0 -1 0"/>'), NotImplementedError,
+     "joint 'j2' turns about the opposite axis"),
+    ("slide out of plane", _chain_xml('<joint name="j1" type="slide" axis="0 1 0"/>'), NotImplementedError,
+     "joint 'j1' slides along .* out of the plane"),
+    ("contact", _chain_xml(HINGE, body_extra=GC, world=GW), NotImplementedError,
+     "geom 'gw' and geom 'gc' can collide.*contact=\"disable\""),
+    ("contact pair", _chain_xml(HINGE, model_extra='<contact><pair geom1="ga" geom2="gb"/></contact>'),
+     NotImplementedError, "explicit contact pair"),
+    ("spring", _chain_xml('<joint name="j1" type="hinge" axis="0 1 0" stiffness="3"/>'), NotImplementedError,
+     "joint 'j1' has stiffness 3.0"),
+    ("friction loss", _chain_xml('<joint name="j1" type="hinge" axis="0 1 0" frictionloss="0.1"/>'),
+     NotImplementedError, "joint 'j1' has frictionloss"),
+    ("tendon", _chain_xml(HINGE, model_extra='<tendon><fixed name="t"><joint joint="j1" coef="1"/></fixed></tendon>'),
+     NotImplementedError, "tendon 't'"),
+    ("equality", _chain_xml(HINGE, model_extra='<equality><joint name="eq" joint1="j1" joint2="j2"/></equality>'),
+     NotImplementedError, "equality 'eq'"),
+    ("position servo", _chain_xml(HINGE, model_extra='<actuator><position name="p" joint="j1" kp="10"/></actuator>'),
+     NotImplementedError, "actuator 'p' is not a motor"),
+    ("force limit", _chain_xml(HINGE, model_extra='<actuator><motor name="m" joint="j1" forcerange="-1 1"/></actuator>'),
+     NotImplementedError, "actuator 'm' is force-limited"),
+    ("negative gear", _chain_xml(HINGE, model_extra='<actuator><motor name="m" joint="j1" gear="-2"/></actuator>'),
+     NotImplementedError, "actuator 'm' has gear \\* gain = -2"),
+    ("actuator order", _chain_xml(HINGE, model_extra='<actuator><motor name="m2" joint="j2"/><motor name="m1" '
+                                                   'joint="j1"/></actuator>'),
+     NotImplementedError, "actuator 'm1'.*declared in joint order"),
+    ("two motors", _chain_xml(HINGE, model_extra='<actuator><motor joint="j1"/><motor joint="j1"/></actuator>'),
+     NotImplementedError, "joint 'j1' has more than one actuator"),
+    ("limit", _chain_xml('<joint name="j1" type="hinge" axis="0 1 0" range="-1 1" limited="true"/>'), ValueError,
+     "joint 'j1' is limited.*limits=\"ignore\""),
+    ("tree", _chain_xml(HINGE, child='<body name="c"><joint name="j3" type="hinge" axis="0 1 0"/>'
+                                     '<geom type="sphere" size="0.1" contype="0" conaffinity="0"/></body>'),
+     NotImplementedError, "body 'c' \\(joint 'j3'\\) hangs from body 'a', not from body 'b'"),
+    ("fluid", _chain_xml(HINGE, option=' density="1.2"'), NotImplementedError, "fluid forces"),
+    ("no joint", "<mujoco><worldbody><geom size='1'/></worldbody></mujoco>", ValueError, "no joint"),
+]
+
+
+@pytest.mark.parametrize("what, xml, error, match", REFUSALS, ids=[r[0] for r in REFUSALS])
+def test_refusals_name_the_feature_and_the_element(what, xml, error, match):
+    with pytest.raises(error, match=match):
+        from_mjcf(xml)
+
+
+def test_gymnasium_reacher_is_refused_clearly():
+    with pytest.raises(NotImplementedError, match="body 'target' \\(joint 'target_x'\\) hangs from the world.*second chain"):
+        from_mjcf(GYM / "reacher.xml", limits="ignore")
+
+
+def test_mujoco_rollout_steps_mujoco_and_reports_constraints():
+    model = mujoco.MjModel.from_xml_path(str(MODELS["dm_control/cartpole"]))
+    data = mujoco.MjData(model)
+    q0, qd0, us = np.array([0.1, 0.2]), np.array([0.0, 0.5]), np.full((20, 1), 0.3)
+    data.qpos[:], data.qvel[:] = q0, qd0
+    expected = [np.r_[q0, qd0]]
+    for u in us:
+        data.ctrl[:] = u
+        mujoco.mj_step(model, data)
+        expected.append(np.r_[data.qpos, data.qvel])
+    states, met = mujoco_rollout(model, q0, qd0, us)
+    assert states.shape == (21, 4) and not met and np.array_equal(states, np.array(expected))
+    _, met = mujoco_rollout(model, np.array([1.75, 0.0]), np.array([3.0, 0.0]), np.zeros((10, 1)))
+    assert met  # the slider runs into its limit at 1.8 m
+
+
+def test_what_disabling_a_constraint_allows():
+    """With contacts or all constraints disabled the colliding geoms and the limit are no obstacle: MuJoCo applies
+    neither, so the chain is exact."""
+    contact = _chain_xml(HINGE, body_extra=GC, world=GW)
+    for flag in ('contact="disable"', 'constraint="disable"'):
+        xml = contact.replace("<option/>", f"<option><flag {flag}/></option>")
+        _check_terms(mujoco.MjModel.from_xml_string(xml), from_mjcf(xml))
+    limited = _chain_xml('<joint name="j1" type="hinge" axis="0 1 0" range="-1 1" limited="true"/>')
+    from_mjcf(limited.replace("<option/>", '<option><flag limit="disable"/></option>'))
