@@ -1,0 +1,48 @@
+"""``optim.identify``: a chain's parameters recovered from trajectories of the chain itself (exact data, float64), and
+its argument checks."""
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import lagrange as lg
+from lagrange.chain import Chain, Link
+from optim.identify import identify
+
+
+def _acrobot(theta):
+    """An actuated double pendulum with link masses exp(theta[:2]) and joint damping exp(theta[2:])."""
+    m, b = jnp.exp(theta[:2]), jnp.exp(theta[2:])
+    return Chain([Link("revolute", m[0], 1.0, damping=b[0], gear=2.0), Link("revolute", m[1], 0.8, damping=b[1])])
+
+
+def _windows(chain, rng, count=24, steps=6, dt=0.01, solver=lg.SemiImplicitEuler()):
+    states, controls = [], []
+    for _ in range(count):
+        q0, qd0, u = rng.uniform(-np.pi, np.pi, 2), rng.uniform(-3, 3, 2), np.full((steps, 1), rng.uniform(-1, 1))
+        tr = lg.simulate(chain, jnp.asarray(q0), jnp.asarray(qd0), jnp.asarray(u), dt, solver)
+        states.append(np.concatenate([tr.q, tr.qd], axis=-1))
+        controls.append(u)
+    return np.array(states), np.array(controls)
+
+
+def test_recovers_masses_and_damping():
+    truth = np.log([1.3, 0.7, 0.05, 0.2])
+    states, controls = _windows(_acrobot(jnp.asarray(truth)), np.random.default_rng(0))
+    start = np.log([2.6, 1.4, 0.3, 0.3])
+    fit = identify(_acrobot, start, states, controls, 0.01, lg.SemiImplicitEuler(), iterations=60)
+    assert fit.losses.shape == (61,) and float(fit.losses[-1]) < 1e-20 < float(fit.losses[0])
+    np.testing.assert_allclose(np.exp(fit.theta), np.exp(truth), rtol=1e-8)
+    np.testing.assert_allclose(fit.chain.mass, [1.3, 0.7], rtol=1e-8)
+
+
+def test_argument_checks():
+    states, controls = _windows(_acrobot(jnp.zeros(4)), np.random.default_rng(1), count=2, steps=3)
+    with pytest.raises(ValueError, match=r"states must have shape \(windows, T \+ 1 >= 2, 2 n = 4\)"):
+        identify(_acrobot, jnp.zeros(4), states[..., :3], controls, 0.01)
+    with pytest.raises(ValueError, match=r"controls must have shape \(windows, T, m\) = \(2, 3, 1\)"):
+        identify(_acrobot, jnp.zeros(4), states, None, 0.01)
+    with pytest.raises(ValueError, match="dt must be > 0"):
+        identify(_acrobot, jnp.zeros(4), states, controls, 0.0)
+    with pytest.raises(ValueError, match="iterations must be an integer >= 1"):
+        identify(_acrobot, jnp.zeros(4), states, controls, 0.01, iterations=0)
