@@ -76,6 +76,11 @@ def test_help(example):
     assert ("--bodies" in out) == (example != "custom_chain.py")  # a chain of one's own has no Brax v1 bodies
 
 
+def test_mjcf_import_example_help():
+    out = _run("--help", example="mjcf_import.py").stdout
+    assert "--model" in out and "--seed" in out
+
+
 def test_quick_run_writes_every_artefact(tmp_path):
     out = tmp_path / "run"
     _run("--quick", "--iterations", "1", "--out", str(out), "--seed", "3", "--no-progress")
