@@ -6,7 +6,8 @@
     python benchmarks/paper_tables.py --budget paper   # the authors' protocol (about 1e9 env steps per CE-APG run)
     python benchmarks/paper_tables.py --budget smoke --seeds 0   # a pipeline check (numbers meaningless; runs/)
 
-The published acrobot variants (``--tasks acrobot --algos ce_apg`` and):
+The published acrobot variants (``--tasks acrobot --algos ce_apg --set max_grad_norm=none`` and; they were trained
+before the acrobot's preset clipped its gradients):
 
     --variant ep1 --set episodes=1                                  # one episode per APG step
     --variant braxv1ep1 --set bodies=brax_v1 --set episodes=1
