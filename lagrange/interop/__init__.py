@@ -1,7 +1,8 @@
 """The chains and tasks of :mod:`lagrange` in other engines' and ecosystems' formats.
 
 - :mod:`lagrange.interop.mjcf`: :func:`to_mjcf` writes a chain as an MJCF model, so MuJoCo, MJX and Brax
-  simulate (or show) the very same system.
+  simulate (or show) the very same system; :func:`from_mjcf` reads a planar MJCF model (dm_control's,
+  Gymnasium's, Brax's) through MuJoCo's compiler as a chain with ``q = qpos``.
 - :mod:`lagrange.interop.brax`: :class:`BraxEnv` puts a task of :mod:`lagrange.tasks` behind Brax's
   ``brax.envs.base.Env``, so Brax's PPO, SAC and APG trainers run on it; :func:`brax_training_compat`
   is the context in which Brax 0.14.2's trainers run on JAX 0.10.
@@ -19,13 +20,14 @@ from __future__ import annotations
 
 import importlib
 
-__all__ = ["BraxEnv", "GymEnv", "brax_training_compat", "to_mjcf"]
+__all__ = ["BraxEnv", "GymEnv", "brax_training_compat", "from_mjcf", "to_mjcf"]
 
 _HOMES = {
     "BraxEnv": "lagrange.interop.brax",
     "brax_training_compat": "lagrange.interop.brax",
     "GymEnv": "lagrange.interop.gymnasium",
     "to_mjcf": "lagrange.interop.mjcf",
+    "from_mjcf": "lagrange.interop.mjcf",
 }
 
 

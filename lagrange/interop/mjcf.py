@@ -1,4 +1,9 @@
-"""Export a chain to MJCF, so MuJoCo and Brax can simulate (or show) the very same system.
+"""MJCF in and out: read the planar models people hold as MJCF, and export a chain so MuJoCo and Brax simulate it.
+
+:func:`from_mjcf` reads a model through MuJoCo's own compiler as a :class:`~lagrange.chain.Chain` whose ``q``, ``qd``
+and ``u`` are MuJoCo's ``qpos``, ``qvel`` and ``ctrl`` (the docs' "Importing MJCF"); :func:`solver_of` names the
+integrator that reproduces its ``mj_step``, :func:`mujoco_rollout` steps MuJoCo itself. Reading needs MuJoCo
+(``pip install -e ".[mjcf]"``), imported when first called.
 
 :func:`to_mjcf` returns the model as an XML string; MuJoCo, MJX and Brax load it with their own
 readers::
@@ -10,7 +15,7 @@ readers::
 
     model = mujoco.MjModel.from_xml_string(to_mjcf(systems.acrobot(), timestep=0.01))
 
-This module needs neither MuJoCo nor Brax. :func:`to_mjcf` writes one nested ``<body>`` per link. Our planar
+Writing needs neither MuJoCo nor Brax. :func:`to_mjcf` writes one nested ``<body>`` per link. Our planar
 x-z conventions map onto MuJoCo's 3D frames as follows:
 
 - Every body frame is the link's frame: origin at the joint, local ``-z`` along the link
