@@ -24,7 +24,7 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 import lagrange as lg  # noqa: E402
-from lagrange.interop.mjcf import from_mjcf, solver_of  # noqa: E402
+from lagrange.interop.mjcf import from_mjcf, mujoco_rollout, solver_of  # noqa: E402
 
 RESULTS = pathlib.Path(__file__).parent / "results"
 
@@ -60,7 +60,7 @@ def states(model, rng, k, scale):
 
 def measure(path: pathlib.Path) -> dict:
     model = mujoco.MjModel.from_xml_path(str(path))
-    chain = from_mjcf(path, limits="ignore")
+    chain = from_mjcf(model, limits="ignore")
     data = mujoco.MjData(model)
     rng = np.random.default_rng(0)
     q, qd, u = states(model, rng, 32, 1.0)
@@ -80,19 +80,12 @@ def measure(path: pathlib.Path) -> dict:
     while done < 8:
         q0, qd0, _ = states(model, rng, 1, 0.05)
         us = rng.uniform(-0.3, 0.3, (100, model.nu))
-        mujoco.mj_resetData(model, data)
-        data.qpos[:], data.qvel[:] = q0[0], qd0[0]
-        xs, clear = [], True
-        for k in range(100):
-            data.ctrl[:] = us[k]
-            mujoco.mj_step(model, data)
-            clear &= data.nefc == 0
-            xs.append(np.concatenate([data.qpos, data.qvel]))
-        if not clear:
+        xs, met = mujoco_rollout(model, q0[0], qd0[0], us)
+        if met:
             continue
         tr = lg.simulate(chain, jnp.asarray(q0[0]), jnp.asarray(qd0[0]), jnp.asarray(us) if chain.m else None, dt,
                          solver, steps=100)
-        rollout = max(rollout, rel(np.concatenate([tr.q[1:], tr.qd[1:]], axis=1), np.array(xs)))
+        rollout = max(rollout, rel(np.concatenate([tr.q[1:], tr.qd[1:]], axis=1), xs[1:]))
         done += 1
     return dict(joints=list(chain.joints), integrator=type(solver).__name__, timestep=dt, **err, rollout=rollout)
 

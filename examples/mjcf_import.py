@@ -38,12 +38,13 @@ def scaled(chain, theta):
 
 
 def main(path, seed):
-    chain, (solver, dt) = from_mjcf(path, limits="ignore"), solver_of(path)  # the data stay inside the rail's limits
+    model = mujoco.MjModel.from_xml_path(str(path))  # compiled once, read by every call below
+    chain, (solver, dt) = from_mjcf(model, limits="ignore"), solver_of(model)  # the data stay inside the rail's limits
     rng, windows = np.random.default_rng(seed), []
     while len(windows) < 256:
         q0 = np.concatenate([rng.uniform(-0.7, 0.7, 1), rng.uniform(-np.pi, np.pi, chain.n - 1)])
         u = np.full((5, chain.m), rng.uniform(-1, 1))
-        x, met = mujoco_rollout(path, q0, rng.uniform(-3, 3, chain.n), u)
+        x, met = mujoco_rollout(model, q0, rng.uniform(-3, 3, chain.n), u)
         windows += [] if met else [(x, u)]
     states, controls = (np.array(a, np.float32) for a in zip(*windows))
     theta0 = np.log(np.r_[np.full(chain.n, 2.0), np.full(chain.n, 0.3)]).astype(np.float32)
@@ -59,7 +60,7 @@ def main(path, seed):
     returns, held = evaluate(task, policy, normalizer, jax.random.PRNGKey(10_000), 16)
     print(f"balance for 5 s: return {float(returns.mean()):.0f} of 5000, {int(held.sum())}/16 held (lagrange)")
     act = jax.jit(lambda obs, h, t: policy(normalizer(obs), h, t == 0))
-    model, held_mj = mujoco.MjModel.from_xml_path(str(path)), 0
+    held_mj = 0
     for episode in range(8):  # the same policy driving MuJoCo on the original model
         x, h, met = rng.uniform(-0.05, 0.05, 2 * chain.n), policy.initial_state(), False
         for t in range(task.horizon):

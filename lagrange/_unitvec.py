@@ -45,7 +45,7 @@ class _StructureOnly:
 
     def __init__(self, chain: Chain):
         self.joints, self.axes, self.n = chain.joints, chain.axes, chain.n
-        self.offsets, self.frame_offsets = chain.offsets, chain.frame_offsets
+        self.frame_offsets = chain.frame_offsets
         self.armatured, self.damped = chain.armatured, chain.damped
         self.com_normal = None if chain.com_normal is None else SYMBOL
         self.mass = self.length = self.com = self.inertia = SYMBOL

@@ -35,6 +35,7 @@ one that is singular only at some configurations is reported by
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import Sequence
 
@@ -266,11 +267,7 @@ class Chain(eqx.Module):
     def frame_offsets(self) -> tuple[float, ...]:
         """Each link frame's angle at ``q = 0`` [rad], the sum of the offsets up to it: ``phi_i = offset_sum_i +``
         (the revolute ``q_j``, ``j <= i``). Static."""
-        out, acc = [], 0.0
-        for o in self.offsets:
-            acc = acc + o if o != 0.0 else acc
-            out.append(acc)
-        return tuple(out)
+        return tuple(itertools.accumulate(self.offsets))
 
     @property
     def n(self) -> int:
