@@ -50,6 +50,7 @@ import numpy as np
 
 from lagrange import _scalar as s
 from lagrange import _unitvec
+from lagrange._sincos import sincos
 from lagrange.chain import Chain
 
 
@@ -118,7 +119,7 @@ class _Kin:
             phi = _cumsum(q)
         else:
             phi = _cumsum(q * P(rev.astype(float)))
-        sin, cos = jnp.sin(phi), jnp.cos(phi)
+        sin, cos = sincos(phi)
         sp, cp = _prev(sin, 0.0), _prev(cos, 1.0)
         lp = _prev(P(chain.length), 0.0)
         off = np.asarray(chain.frame_offsets())

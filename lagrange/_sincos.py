@@ -1,0 +1,76 @@
+"""``sincos(x)``: the sine and cosine of float64 angles from one range reduction and two polynomials.
+
+XLA's CPU backend evaluates a float64 ``sin`` or ``cos`` at ~6 ns an element (a scalar call each), and counts them as
+cheap enough to recompute in every fused kernel that reads them: the link angles of a long chain ended up computed
+several times per step. Here the reduction ``x = k pi/2 + y`` (Cody-Waite, pi/2 in three parts, as fdlibm's
+``__ieee754_rem_pio2`` does for medium arguments) and fdlibm's minimax polynomials of ``__kernel_sin`` and
+``__kernel_cos`` on ``|y| <= pi/4`` are plain multiplies and adds that XLA vectorises: both values for ~2.3 ns an
+element. Measured against NumPy: absolute errors <= 2.3e-16 for ``|x| <= 1e5`` rad, 1.3e-15 at 1e6 and 1.3e-13 at 1e8
+(where the angle itself is only known to its spacing, 1.5e-8); ``tests/lagrange/test_sincos.py`` holds the first.
+
+The derivative is given by a ``custom_jvp`` (``d sin = cos dx``, ``d cos = -sin dx``), so reverse mode stores no
+polynomial intermediates and higher derivatives come out the same way. Other float types use ``jnp.sin``/``jnp.cos``,
+which XLA already vectorises in float32.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+# fdlibm k_sin.c and k_cos.c
+_S = (-1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04,
+      2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10)
+_C = (4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05,
+      -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11)
+# fdlibm e_rem_pio2.c: pi/2 in three 33-bit parts and their tails
+_PIO2_1, _PIO2_1T = 1.57079632673412561417e00, 6.07710050650619224932e-11
+_PIO2_2, _PIO2_2T = 6.07710050630396597660e-11, 2.02226624879595063154e-21
+_PIO2_3, _PIO2_3T = 2.02226624871116645580e-21, 8.47842766036889956997e-32
+_INVPIO2 = 6.36619772367581382433e-01
+
+
+def _poly(z, c):
+    out = c[-1]
+    for ci in reversed(c[:-1]):
+        out = ci + z * out
+    return out
+
+
+def _sincos64(x):
+    k = jnp.round(x * _INVPIO2)
+    # y = x - k pi/2 in double-double steps (fdlibm's medium-argument path, both refinements always taken)
+    r = x - k * _PIO2_1
+    w = k * _PIO2_1T
+    y = r - w
+    w = k * _PIO2_2
+    r2 = r - w
+    w = k * _PIO2_2T - ((r - r2) - w)
+    y = r2 - w
+    w = k * _PIO2_3
+    r3 = y - w
+    w = k * _PIO2_3T - ((y - r3) - w)
+    y = r3 - w
+    z = y * y
+    s = y + (y * z) * _poly(z, _S)
+    c = (1.0 - 0.5 * z) + (z * z) * _poly(z, _C)
+    quadrant = k - 4.0 * jnp.floor(k * 0.25)  # k mod 4, exact in floating point
+    swap = (quadrant == 1.0) | (quadrant == 3.0)
+    sin = jnp.where(swap, c, s) * jnp.where(quadrant >= 2.0, -1.0, 1.0)
+    cos = jnp.where(swap, s, c) * jnp.where((quadrant == 1.0) | (quadrant == 2.0), -1.0, 1.0)
+    return sin, cos
+
+
+@jax.custom_jvp
+def sincos(x):
+    """``(sin(x), cos(x))`` of an array ``x`` (float64: the polynomials above; other types: ``jnp.sin``/``jnp.cos``)."""
+    if jnp.result_type(x) == jnp.float64:
+        return _sincos64(x)
+    return jnp.sin(x), jnp.cos(x)
+
+
+@sincos.defjvp
+def _sincos_jvp(primals, tangents):
+    (x,), (dx,) = primals, tangents
+    s, c = sincos(x)
+    return (s, c), (c * dx, s * (-1.0 * dx))
