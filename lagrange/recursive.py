@@ -102,6 +102,14 @@ def _dtype(chain: Chain, *xs):
 # ------------------------------------------------------------------ kinematics
 
 
+def _per_link(x, dtype):
+    """A per-link parameter for a scan over the links: a Python float when every link has the same concrete value (it
+    folds into the compiled step), else an array of shape (n,) that the scan slices link by link."""
+    if isinstance(x, np.ndarray) and x.size and np.all(x == x.flat[0]):
+        return float(x.flat[0])
+    return jnp.asarray(x, dtype)
+
+
 class _Kin:
     """Per-link kinematics, every array shaped (n, *batch) (or a Python float when static).
 
@@ -109,77 +117,117 @@ class _Kin:
     spatial velocity at ``p_i``; ``c``: ``v_i x S_i qd_i`` (linear part; its angular part is 0);
     ``m``, ``h``, ``J``: mass, first moment ``m com d(phi_i)`` and inertia about ``p_i``;
     ``pA``: ``v_i x* I_i v_i``. Velocity terms are ``None`` when ``qd`` is.
+
+    Computed by one ``lax.scan`` outward over the links (:func:`_scan`): each step is a few dozen multiplies on
+    arrays of the batch's shape, which XLA's CPU backend vectorises, where cumulative sums over the link axis
+    (``reduce_window``) and the angles' sines recomputed in every kernel that read them cost several times more.
     """
 
     def __init__(self, chain: Chain, q, qd, nb: int):
-        rev = np.array([j == "revolute" for j in chain.joints])
         dtype = q.dtype
-        P = lambda x: _param(jnp.asarray(x, dtype), nb)  # noqa: E731
-        if rev.all():
-            phi = _cumsum(q)
-        else:
-            phi = _cumsum(q * P(rev.astype(float)))
-        sin, cos = sincos(phi)
-        sp, cp = _prev(sin, 0.0), _prev(cos, 1.0)
-        lp = _prev(P(chain.length), 0.0)
-        off = np.asarray(chain.frame_offsets())
+        n = chain.n
+        rev = np.array([j == "revolute" for j in chain.joints])
+        off = np.asarray(chain.frame_offsets(), float)
         poff = np.concatenate([[0.0], off[:-1]])  # the parent frame's offset
-        if np.any(off != 0):
-            # the parent's tip l d(phi + off) = l cos(off) d(phi) + l sin(off) e(phi)
-            cs = np.array([_unitvec.cos_sin(o) for o in poff])
-            ld, le = lp * P(cs[:, 0]), lp * P(cs[:, 1])
-            rx, rz = ld * sp + le * cp, -ld * cp + le * sp
-        else:
-            rx, rz = lp * sp, -lp * cp
-        if rev.all():
-            S = (1.0, 0.0, 0.0)
-        else:
-            pri = P((~rev).astype(float))
+        L = lambda x: _per_link(x, dtype)  # noqa: E731
+        lp = chain.length
+        lp = jnp.concatenate([jnp.zeros((1,), jnp.result_type(lp)), lp[:-1]]) if not isinstance(lp, np.ndarray) \
+            else np.concatenate([[0.0], lp[:-1]])
+        cs_p = np.array([_unitvec.cos_sin(o) for o in poff]).reshape(n, 2)
+        xs = dict(q=q)
+        params = dict(ld=lp * cs_p[:, 0], le=lp * cs_p[:, 1])
+        if not rev.all():
             axes = np.asarray(chain.axes) + poff
-            if np.all(axes == 0):
-                ex, ez = cp, sp
-            else:  # e(phi + a) = cos a e(phi) - sin a d(phi)
-                ca, sa = P(np.cos(axes)), P(np.sin(axes))
-                ex, ez = cp * ca - sp * sa, sp * ca + cp * sa
-            S = (P(rev.astype(float)) if rev.any() else 0.0, pri * ex, pri * ez)
-            rx, rz = rx + S[1] * q, rz + S[2] * q
-        self.S, self.rx, self.rz, self.sin, self.cos = S, rx, rz, sin, cos
+            params |= dict(rev=rev.astype(float), pri=(~rev).astype(float), ca=np.cos(axes), sa=np.sin(axes))
+        m, com = chain.mass, chain.com
+        cs = np.array([_unitvec.cos_sin(o) for o in off]).reshape(n, 2)
+        cn = 0.0 if chain.com_normal is None else chain.com_normal
+        # the centre of mass c_d d(phi + off) + c_e e(phi + off), on d(phi) and e(phi)
+        cd, ce = com * cs[:, 0] - cn * cs[:, 1], com * cs[:, 1] + cn * cs[:, 0]
+        params |= dict(mcd=m * cd, mce=m * ce)
+        self.m = _param(jnp.asarray(m, dtype), nb) if not isinstance(L(m), float) else L(m)
+        J = chain.inertia + m * (com * com + cn * cn)
+        self.J = _param(jnp.asarray(J, dtype), nb) if not isinstance(L(J), float) else L(J)
+        if qd is not None:
+            xs["qd"] = qd
+            params |= dict(m=m, J=J)
+        consts = {}
+        for key, v in params.items():
+            v = L(v)
+            if isinstance(v, float):
+                consts[key] = v
+            else:
+                xs[key] = v
+        batch = q.shape[1:]
+        zero = jnp.zeros(batch, dtype)
 
-        m, com = P(chain.mass), P(chain.com)
-        self.m = m
-        if np.any(off != 0) or chain.com_normal is not None:
-            # the centre of mass c_d d(phi + off) + c_e e(phi + off), on d(phi) and e(phi)
-            cn = 0.0 if chain.com_normal is None else P(chain.com_normal)
-            cs = np.array([_unitvec.cos_sin(o) for o in off])
-            co, so = P(cs[:, 0]), P(cs[:, 1])
-            cd, ce = com * co - cn * so, com * so + cn * co
-            self.hx, self.hz = m * (cd * sin + ce * cos), m * (ce * sin - cd * cos)
-            self.J = P(chain.inertia) + m * (com * com + cn * cn)
-        else:
-            self.hx, self.hz = m * com * sin, -m * com * cos
-            self.J = P(chain.inertia) + m * com * com
+        def step(carry, x):
+            x = {**consts, **x}
+            phi, sp, cp = carry[:3]
+            qi = x["q"]
+            phi = s.add(phi, s.mul(x.get("rev", 1.0), qi))
+            sin, cos = sincos(phi)
+            # the parent's tip l d(phi + off) = l cos(off) d(phi) + l sin(off) e(phi), d = (sin, -cos), e = (cos, sin)
+            ld, le = x["ld"], x["le"]
+            rx = s.add(s.mul(ld, sp), s.mul(le, cp))
+            rz = s.add(s.mul(s.neg(ld), cp), s.mul(le, sp))
+            if "pri" in x:  # e(phi_{i-1} + axis_i) = cos a e(phi) - sin a d(phi)
+                ex = s.sub(s.mul(x["ca"], cp), s.mul(x["sa"], sp))
+                ez = s.add(s.mul(x["ca"], sp), s.mul(x["sa"], cp))
+                S = (x["rev"], s.mul(x["pri"], ex), s.mul(x["pri"], ez))
+                rx, rz = s.add(rx, s.mul(S[1], qi)), s.add(rz, s.mul(S[2], qi))
+            else:
+                S = (1.0, 0.0, 0.0)
+            hx = s.add(s.mul(x["mcd"], sin), s.mul(x["mce"], cos))
+            hz = s.sub(s.mul(x["mce"], sin), s.mul(x["mcd"], cos))
+            out = dict(sin=sin, cos=cos, rx=rx, rz=rz, hx=hx, hz=hz)
+            if not isinstance(S[1], float):
+                out |= dict(s0=S[0], s1=S[1], s2=S[2])
+            if qd is None:
+                return (phi, sin, cos), _arrays(out, zero)
+            w, vx, vz = carry[3:]
+            qdi = x["qd"]
+            sw, svx, svz = s.mul(S[0], qdi), s.mul(S[1], qdi), s.mul(S[2], qdi)
+            vx = s.add(s.add(vx, s.mul(s.neg(w), rz)), svx)
+            vz = s.add(s.add(vz, s.mul(w, rx)), svz)
+            w = s.add(w, sw)
+            # c = v x (S qd) = (0, w perp(sv) - sw perp(v))
+            cx = s.add(s.neg(s.mul(w, svz)), s.mul(sw, vz))
+            cz = s.sub(s.mul(w, svx), s.mul(sw, vx))
+            t, Fx, Fz = _momentum(x["J"], hx, hz, x["m"], w, vx, vz)
+            out |= dict(w=w, vx=vx, vz=vz, cx=cx, cz=cz,
+                        pt=s.sub(s.mul(vx, Fz), s.mul(vz, Fx)), px=s.neg(s.mul(w, Fz)), pz=s.mul(w, Fx))
+            return (phi, sin, cos) + _arrays((w, vx, vz), zero), _arrays(out, zero)
+
+        init = (zero, zero, zero + 1.0) + ((zero, zero, zero) if qd is not None else ())
+        _, ys = _scan(step, init, xs)
+        self.sin, self.cos, self.rx, self.rz, self.hx, self.hz = (ys[k] for k in ("sin", "cos", "rx", "rz", "hx", "hz"))
+        self.S = (ys["s0"], ys["s1"], ys["s2"]) if "s0" in ys else (1.0, 0.0, 0.0)
         self.w = self.vx = self.vz = self.cx = self.cz = self.pA = None
-        if qd is None:
-            return
-        w = _cumsum(s.mul(S[0], qd))
-        wp = _prev(w, 0.0)
-        sw, svx, svz = s.mul(S[0], qd), s.mul(S[1], qd), s.mul(S[2], qd)
-        vx = _cumsum(s.add(s.mul(s.neg(wp), rz), svx))
-        vz = _cumsum(s.add(s.mul(wp, rx), svz))
-        # c = v x (S qd) = (0, w perp(sv) - sw perp(v))
-        self.cx = s.add(s.neg(s.mul(w, svz)), s.mul(sw, vz))
-        self.cz = s.sub(s.mul(w, svx), s.mul(sw, vx))
-        self.w, self.vx, self.vz = w, vx, vz
-        t, Fx, Fz = self.momentum(w, vx, vz)
-        self.pA = (vx * Fz - vz * Fx, -w * Fz, w * Fx)
+        if qd is not None:
+            self.w, self.vx, self.vz, self.cx, self.cz = (ys[k] for k in ("w", "vx", "vz", "cx", "cz"))
+            self.pA = (ys["pt"], ys["px"], ys["pz"])
 
     def momentum(self, w, vx, vz):
         """``I_i (w, vx, vz)``: the spatial inertia times a motion."""
-        return (
-            s.add(s.add(s.mul(self.J, w), s.mul(-self.hz, vx)), s.mul(self.hx, vz)),
-            s.add(s.mul(-self.hz, w), s.mul(self.m, vx)),
-            s.add(s.mul(self.hx, w), s.mul(self.m, vz)),
-        )
+        return _momentum(self.J, self.hx, self.hz, self.m, w, vx, vz)
+
+
+def _arrays(xs, like):
+    """``xs`` (a dict or tuple) with every entry an array shaped like ``like`` (scan outputs and carries)."""
+    if isinstance(xs, dict):
+        return {key: jnp.broadcast_to(jnp.asarray(v, like.dtype), like.shape) for key, v in xs.items()}
+    return tuple(jnp.broadcast_to(jnp.asarray(v, like.dtype), like.shape) for v in xs)
+
+
+def _momentum(J, hx, hz, m, w, vx, vz):
+    """``I (w, vx, vz)`` for the spatial inertia of mass ``m``, first moment ``(hx, hz)`` and inertia ``J`` about the
+    reference point."""
+    return (
+        s.add(s.sub(s.mul(J, w), s.mul(hz, vx)), s.mul(hx, vz)),
+        s.sub(s.mul(m, vx), s.mul(hz, w)),
+        s.add(s.mul(hx, w), s.mul(m, vz)),
+    )
 
 
 def clamp_controls(chain: Chain, u):
@@ -346,23 +394,23 @@ def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, p
         extra = _param(chain.armature, nb)
     if implicit_damping_dt is not None and chain.damping is not None:
         extra = s.add(0.0 if extra is None else extra, implicit_damping_dt * _param(chain.damping, nb))
-    shape = q.shape
-    full = lambda x: x if (x is None or s.is_const(x)) else jnp.broadcast_to(x, shape)  # noqa: E731
     S = k.S
-    xs = dict(
-        m=k.m, hx=k.hx, hz=k.hz, J=k.J, pt=k.pA[0], px=k.pA[1], pz=k.pA[2], rx=k.rx, rz=k.rz,
-        cx=k.cx, cz=k.cz, tau=tau, extra=extra, s0=S[0], s1=S[1], s2=S[2],
-    )
-    xs, names, consts = _pack({key: full(v) for key, v in xs.items()})
+    xs = dict(hx=k.hx, hz=k.hz, pt=k.pA[0], px=k.pA[1], pz=k.pA[2], rx=k.rx, rz=k.rz, cx=k.cx, cz=k.cz, tau=tau,
+              s0=S[0], s1=S[1], s2=S[2])
+    params = dict(m=k.m, J=k.J, extra=extra)
+    xs, consts = _split_links(xs, params, nb)
     zero = jnp.zeros(batch, dtype)
+    # a revolute joint without armature: U = (a, b, c), D = a, and the articulated inertia it passes on has a zero
+    # first row and column (Ia = IA - U U^T / a), so only (d, e, f) and the bias force need computing
+    revolute = all(s.is_const(x) for x in S) and S == (1.0, 0.0, 0.0) and s.is_zero(consts.get("extra", 1.0))
 
     def inward(carry, x):
         # carry: the child's articulated inertia (a, b, c, d, e, f) and bias force (t, x, z) at p_i
-        x = _unpack(x, names, consts)
+        x = {**consts, **x}
         s0, s1, s2 = x["s0"], x["s1"], x["s2"]
-        a, b, c = x["J"] + carry[0], -x["hz"] + carry[1], x["hx"] + carry[2]
-        d, e, f = x["m"] + carry[3], carry[4], x["m"] + carry[5]
-        pt, px, pz = x["pt"] + carry[6], x["px"] + carry[7], x["pz"] + carry[8]
+        a, b, c = s.add(x["J"], carry[0]), s.sub(carry[1], x["hz"]), s.add(x["hx"], carry[2])
+        d, e, f = s.add(x["m"], carry[3]), carry[4], s.add(x["m"], carry[5])
+        pt, px, pz = s.add(x["pt"], carry[6]), s.add(x["px"], carry[7]), s.add(x["pz"], carry[8])
         U0 = s.add(s.add(s.mul(a, s0), s.mul(b, s1)), s.mul(c, s2))
         U1 = s.add(s.add(s.mul(b, s0), s.mul(d, s1)), s.mul(e, s2))
         U2 = s.add(s.add(s.mul(c, s0), s.mul(e, s1)), s.mul(f, s2))
@@ -370,43 +418,64 @@ def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, p
         inv = 1.0 / D
         uu = s.sub(x["tau"], s.add(s.add(s.mul(s0, pt), s.mul(s1, px)), s.mul(s2, pz)))
         W0, W1, W2 = U0 * inv, U1 * inv, U2 * inv
-        a, b, c = a - U0 * W0, b - U0 * W1, c - U0 * W2
-        d, e, f = d - U1 * W1, e - U1 * W2, f - U2 * W2
+        if revolute:
+            a = b = c = 0.0
+            pt = x["tau"]  # pt + W0 uu with W0 = 1
+        else:
+            a, b, c = a - U0 * W0, b - U0 * W1, c - U0 * W2
+        d, e, f = d - U1 * W1, s.sub(e, U1 * W2), f - U2 * W2
         # pa = pA + Ia c + U u / D (c has no angular part)
         cx, cz = x["cx"], x["cz"]
-        pt = pt + b * cx + c * cz + W0 * uu
-        px = px + d * cx + e * cz + W1 * uu
-        pz = pz + e * cx + f * cz + W2 * uu
+        if not revolute:
+            pt = s.add(s.add(s.add(pt, s.mul(b, cx)), s.mul(c, cz)), W0 * uu)
+        px = s.add(s.add(s.add(px, s.mul(d, cx)), s.mul(e, cz)), W1 * uu)
+        pz = s.add(s.add(s.add(pz, s.mul(e, cx)), s.mul(f, cz)), W2 * uu)
         # to the parent's reference point: X(r)^T Ia X(r), X(r)^T pa with perp(r) = (-rz, rx)
-        qx, qz = -x["rz"], x["rx"]
-        b2, c2 = b + qx * d + qz * e, c + qx * e + qz * f
-        a = a + qx * (b + b2) + qz * (c + c2)
-        pt = pt + qx * px + qz * pz
-        out = jnp.stack([a, b2, c2, d, e, f, pt, px, pz])
-        return out, jnp.stack([U0, U1, U2, inv, uu])
+        qx, qz = s.neg(x["rz"]), x["rx"]
+        b2 = s.add(s.add(b, s.mul(qx, d)), s.mul(qz, e))
+        c2 = s.add(s.add(c, s.mul(qx, e)), s.mul(qz, f))
+        a = s.add(s.add(a, s.mul(qx, s.add(b, b2))), s.mul(qz, s.add(c, c2)))
+        pt = s.add(s.add(pt, s.mul(qx, px)), s.mul(qz, pz))
+        out = dict(W1=W1, W2=W2, inv=inv, uu=uu) | ({} if revolute else dict(W0=W0))  # revolute: W0 = U0 / D = 1
+        return _arrays((a, b2, c2, d, e, f, pt, px, pz), zero), _arrays(out, zero)
 
-    _, ys = _scan(inward, jnp.zeros((9,) + batch, dtype), xs, reverse=True)
+    _, ys = _scan(inward, (zero,) * 9, xs, reverse=True)
     g = 0.0 if chain.gravity is None else chain.gravity
-    keep = tuple(key for key in ("rx", "rz", "cx", "cz", "s0", "s1", "s2") if key in names)
-    ys = jnp.concatenate([ys, jnp.stack([xs[:, names.index(key)] for key in keep], axis=1)], axis=1)
-    ynames = ("U0", "U1", "U2", "inv", "uu") + keep
+    ys |= {key: xs[key] for key in ("rx", "rz", "cx", "cz", "s0", "s1", "s2") if key in xs}
 
-    def outward(a, y):
-        y = _unpack(y, ynames, consts)
-        al, ax, az = a[0], a[1], a[2]
+    def outward(acc, y):
+        y = {**consts, "W0": 1.0, **y}
+        al, ax, az = acc
         ax = s.add(s.sub(ax, s.mul(al, y["rz"])), y["cx"])
         az = s.add(s.add(az, s.mul(al, y["rx"])), y["cz"])
-        qdd = (y["uu"] - (y["U0"] * al + y["U1"] * ax + y["U2"] * az)) * y["inv"]
+        qdd = s.sub(y["uu"] * y["inv"], s.add(s.add(s.mul(y["W0"], al), s.mul(y["W1"], ax)), s.mul(y["W2"], az)))
         al = s.add(al, s.mul(y["s0"], qdd))
         ax, az = s.add(ax, s.mul(y["s1"], qdd)), s.add(az, s.mul(y["s2"], qdd))
-        return jnp.stack([jnp.broadcast_to(al, batch), ax, az]), qdd
+        return _arrays((al, ax, az), zero), qdd
 
-    a0 = jnp.stack([zero, zero, zero + g])
-    _, qdd = _scan(outward, a0, ys)
+    _, qdd = _scan(outward, (zero, zero, zero + g), ys)
     if not pivots:
         return _out(qdd)
-    inv = ys[:, ynames.index("inv")]  # 1 / D_i, (n, *batch)
+    inv = ys["inv"]  # 1 / D_i, (n, *batch)
     return _out(qdd), jnp.any(~((inv > 0) & jnp.isfinite(inv)), axis=0)
+
+
+def _split_links(xs, params, nb):
+    """The scan inputs of per-link arrays ``xs`` (each (n, *batch), a constant or None) and parameters ``params``
+    (each (n, 1, ..., 1) as :func:`_param` shapes them, a constant or None): the arrays to slice link by link (the
+    parameters as (n,)), and the constants (``None`` read as 0) that stay out of the loop."""
+    arrays, consts = {}, {}
+    for key, v in xs.items():
+        if v is None or s.is_const(v):
+            consts[key] = 0.0 if v is None else v
+        else:
+            arrays[key] = v
+    for key, v in params.items():
+        if v is None or s.is_const(v):
+            consts[key] = 0.0 if v is None else v
+        else:
+            arrays[key] = jnp.reshape(v, v.shape[:1])
+    return arrays, consts
 
 
 def _scan(body, init, xs, reverse=False):
@@ -415,22 +484,6 @@ def _scan(body, init, xs, reverse=False):
     and 25% faster). Not unrolled: ``unroll=4`` ran ~30% faster but made the compile of a
     differentiated rollout several times slower."""
     return jax.lax.scan(jax.checkpoint(body), init, xs, reverse=reverse)
-
-
-def _pack(d):
-    """Stack the per-link arrays of ``d`` into one (n, K, *batch) array for a scan.
-
-    Returns the array, the names of its K rows, and the entries known at trace time (Python
-    floats, ``None`` read as 0) that stay out of the compiled loop."""
-    names = tuple(key for key, v in d.items() if v is not None and not s.is_const(v))
-    consts = {key: (0.0 if v is None else v) for key, v in d.items() if key not in names}
-    return jnp.stack([d[key] for key in names], axis=1), names, consts
-
-
-def _unpack(x, names, consts):
-    out = dict(consts)
-    out.update({key: x[i] for i, key in enumerate(names)})
-    return out
 
 
 # ------------------------------------------------------------------ energy
