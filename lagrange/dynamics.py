@@ -93,7 +93,7 @@ def _terms(chain: Chain, q, qd, *, mass: bool, velocity: bool, gravity: bool):
     return M, f
 
 
-RECURSIVE_MIN = 5
+RECURSIVE_MIN = 4
 """Chains of at least this many links use the recursive algorithms of :mod:`lagrange.recursive`
 (ABA for ``forward_dynamics``, CRBA for ``mass_matrix``, RNEA for the forces,
 ``inverse_dynamics`` and ``energy``): O(n) work (O(n^2) for M) and a compiled program whose size
@@ -104,19 +104,19 @@ parentheses: an alternative unrolled derivation by sparse second-order jets of t
 O(n) transcendentals): n=2 38 (68), n=3 131 (160), n=4 458 (494), n=5 1110 (950), n=6 2390 (1648).
 
 Measured on n-link pendulums (every joint actuated), semi-implicit Euler rollouts of 20 steps,
-float64, one CPU core of a busy 2-core machine, microseconds per env-step, unrolled / recursive:
+float64, one process on a 2-core machine, microseconds per env-step, unrolled / recursive
+(``jax.vmap`` over the batch):
 
-- n = 4, batch 1: forward 1.4 / 3.7-5.2, gradient 5.2 / 19; batch 1024: forward 0.74 / 0.42,
-  gradient 2.9 / 1.0-2.0.
-- n = 5, batch 1: forward 1.8 / 3.7-4.2, gradient 452 / 10-17; batch 1024: forward 1.6 / 0.6-0.7,
-  gradient 814 / 1.6-2.7.
-- n = 6, batch 1: forward 4.4 / ~5, gradient 4500 / 17; batch 1024: gradient -- / 3.2.
+- n = 2: batch 1 forward 0.40 / 1.8, gradient 0.48 / 7.7; batch 1024 forward 0.034 / 0.070, gradient 0.15 / 0.29.
+- n = 3: batch 1 forward 0.43 / 2.1, gradient 1.3 / 9.8; batch 1024 forward 0.11 / 0.09, gradient 0.72 / 0.43.
+- n = 4: batch 1 forward 1.4 / 4.8, gradient 6.2 / 19; batch 1024 forward 0.91 / 0.11, gradient 2.2 / 0.70.
 
-The unrolled path measured at n = 5 and 6 is the sparse jets, the cheaper unrolled derivation there.
-Unrolled reverse mode breaks down from n = 5 (the jets' gradient also took minutes to compile from
-n = 7), while at n <= 4 (the relative-angle formulation) the unrolled path is the faster choice at
-batch 1, where each of the recursive path's scans pays a per-link loop overhead of ~0.1-0.5 us.
-Hence 5."""
+Each link costs the recursive path three loop iterations per evaluation (kinematics, ABA's two passes), ~0.1-0.5 us
+each at batch 1, while at batch 1024 its vectorised per-link steps win from n = 3 and by 8x at n = 4. The unrolled
+path is kept where it is as fast or faster at both sizes (n <= 3, where it reaches the hand-written closed forms,
+``benchmarks/derivation_overhead.py``); the recursive path from n = 4, where batched simulation, the case of the
+library's training loops, gains most. Hence 4 (a vmapped function is traced once per example, so the choice cannot
+depend on the batch size)."""
 
 
 def _recursive(chain: Chain) -> bool:
