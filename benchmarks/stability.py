@@ -1,38 +1,46 @@
 """Numerical stability sweeps: energy drift, random stress states, float32 vs float64, gradients.
 
-    python -m benchmarks.stability            # the full sweep (about 12 minutes on 2 cores)
-    python -m benchmarks.stability --quick    # reduced sweep (~1-2 minutes), written under runs/benchmarks/
+    python -m benchmarks.stability                    # the full sweep (about 15 minutes on 2 cores)
+    python -m benchmarks.stability --quick            # reduced sweep (~1-2 minutes), written under runs/benchmarks/
+    python -m benchmarks.stability --adaptive-only    # part 2b alone (about 3 minutes; with --quick, under 1)
 
 1. Energy drift of the conservative acrobot and double pendulum over 1e5 steps for each solver.
 2. 10,000 random initial states (speeds up to 50 rad/s, mass ratios up to 1e3 within a chain,
    chains of 2 to 20 links), RK4 at dt = 1e-3 for 0.5 s: non-finite trajectories counted,
    whether ``simulate(check=True)`` would report each (its final state is non-finite), the
    energy error before the blow-up, and how many survive with 8 substeps.
+2b. The error-controlled mode on the first states of the same batch, chains of 3 or more links: ``simulate``'s
+   adaptive Tsit5 (rtol = atol = 1e-8, ``max_steps`` = 4096 per 1 ms interval), 0.5 s: how many finish, how many are
+   stopped by ``max_steps``, their energy error, steps and wall time, beside RK4 at 1 ms on the same states.
 3. float32 against float64: the time at which trajectories part (by 0.1 rad) per system, beside
    two float64 runs whose initial angles differ by 1e-7 rad.
 4. The gradient norm of a final-state loss with respect to the controls against the horizon
    for the acrobot, float32 and float64 (plot).
 
 Writes ``benchmarks/results/stability.json`` and the plot ``docs/img/stability_gradients.png`` (``--quick``:
-``stability_quick.json`` and ``stability_gradients_quick.png`` under ``runs/benchmarks/``, not published).
+``stability_quick.json`` and ``stability_gradients_quick.png`` under ``runs/benchmarks/``, not published);
+``--adaptive-only`` replaces only the ``adaptive_stress`` key of that JSON and keeps the other sections' results.
 Energy errors are relative to ``E0 - V(q = 0)``, the energy above the chain hanging at rest.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import time
 
 import jax
 
 jax.config.update("jax_enable_x64", True)
 
+import diffrax  # noqa: E402
 import equinox as eqx  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import lagrange as lg  # noqa: E402
 from benchmarks._cli import outputs  # noqa: E402
+from lagrange.dynamics import _forward  # noqa: E402  (simulate's vector field: no raise on a singular M)
 from optim.checkpoint import write_json  # noqa: E402
 
 
@@ -87,17 +95,27 @@ def _batch(n, size, rng):
     return tuple(jnp.asarray(x) for x in (mass, length, q, qd))
 
 
+def _rods(base, mass, length):
+    """``base`` (an n-link pendulum) with uniform rods of these masses and lengths: a chain of the stress batch."""
+    return eqx.tree_at(lambda c: (c.mass, c.length, c.com, c.inertia), base,
+                       (mass, length, length / 2, mass * length**2 / 12))
+
+
+def _energy_error(chain, q, qd):
+    """``|E(t) - E(0)| / (E(0) - V(q = 0))`` at each row of a trajectory ``q, qd`` (shape ``(T + 1, n)``)."""
+    kin, pot = lg.energy(chain, q, qd)
+    rest = lg.energy(chain, jnp.zeros(chain.n), jnp.zeros(chain.n))[1]
+    return jnp.abs(kin + pot - kin[0] - pot[0]) / (kin[0] + pot[0] - rest)
+
+
 def _stress_fn(n, dt, steps, substeps):
     base = lg.systems.n_link_pendulum(n)
 
     def one(mass, length, q, qd):
-        chain = eqx.tree_at(lambda c: (c.mass, c.length, c.com, c.inertia), base,
-                            (mass, length, length / 2, mass * length**2 / 12))
+        chain = _rods(base, mass, length)
         tr = _rollout(chain, q, qd, dt, lg.RK4(), steps, substeps)
         finite = jnp.all(jnp.isfinite(tr.q), -1) & jnp.all(jnp.isfinite(tr.qd), -1)
-        kin, pot = lg.energy(chain, tr.q, tr.qd)
-        rest = lg.energy(chain, jnp.zeros(n), jnp.zeros(n))[1]
-        rel = jnp.abs(kin + pot - kin[0] - pot[0]) / (kin[0] + pot[0] - rest)
+        rel = _energy_error(chain, tr.q, tr.qd)
         qdd0 = lg.forward_dynamics(chain, q, qd)
         peak = jnp.max(jnp.where(finite[:, None], jnp.abs(tr.qd), 0.0))
         return (jnp.all(finite), finite[-1], jnp.max(jnp.where(finite, rel, 0.0)),
@@ -136,6 +154,104 @@ def stress(total: int, sizes, dt=1e-3, steps=500, seed=0, rerun_max=200):
         rows.append(row)
         print(f"  stress n={n:2d}: {row}", flush=True)
     return rows
+
+
+# ------------------------------------------------------------------------------ error-controlled stress
+
+
+def _adaptive_rollout(chain, q0, qd0, dt, steps, rtol, atol, max_steps):
+    """``lg.simulate(chain, q0, qd0, None, dt, lg.Tsit5(), steps=steps, rtol=rtol, atol=atol, max_steps=max_steps)``
+    run interval by interval through the same ``diffrax.diffeqsolve`` (Tsit5, a PIDController started at dt in
+    every control interval), but with ``throw=False``: an interval that fails (reaches ``max_steps``) ends the
+    rollout there, holding its state, instead of raising, and diffrax's step counts are kept.
+
+    Returns ``(q, qd, accepted, rejected, busiest, max_steps_hit, failed)``: the states at the interval ends,
+    shape ``(steps + 1, n)``; the accepted and rejected steps summed over the intervals; the most steps one interval
+    took; whether an interval reached ``max_steps``; whether an interval's result was not successful at all."""
+    u = jnp.zeros((chain.m,), q0.dtype)
+    term = diffrax.ODETerm(lambda t, y, u: (y[1], _forward(chain, y[0], y[1], u)))
+    controller = diffrax.PIDController(rtol=rtol, atol=atol)
+
+    def solve(y):
+        sol = diffrax.diffeqsolve(term, lg.Tsit5(), 0.0, dt, dt, y, args=u, stepsize_controller=controller,
+                                  saveat=diffrax.SaveAt(t1=True), max_steps=max_steps, throw=False)
+        return ((sol.ys[0][0], sol.ys[1][0]), sol.stats["num_accepted_steps"], sol.stats["num_rejected_steps"],
+                sol.result == diffrax.RESULTS.max_steps_reached, sol.result != diffrax.RESULTS.successful)
+
+    def hold(y):
+        return y, 0, 0, False, False
+
+    def body(carry, _):
+        y, accepted, rejected, busiest, hit, failed = carry
+        y, a, r, h, f = jax.lax.cond(failed, hold, solve, y)
+        return (y, accepted + a, rejected + r, jnp.maximum(busiest, a + r), hit | h, failed | f), y
+
+    zero = jnp.zeros((), int)
+    (_, accepted, rejected, busiest, hit, failed), (qs, qds) = jax.lax.scan(
+        body, ((q0, qd0), zero, zero, zero, False, False), None, length=steps)
+    q, qd = jnp.concatenate([q0[None], qs]), jnp.concatenate([qd0[None], qds])
+    return q, qd, accepted, rejected, busiest, hit, failed
+
+
+def _adaptive_fn(n, dt, steps, rtol, atol, max_steps):
+    """Jitted: for each state ``(mass, length, q, qd)`` of a batch of n-link stress chains, one after the other
+    (``lax.map``: under ``vmap`` every interval would run until its slowest state is done), its
+    :func:`_adaptive_rollout`'s ``(finite, max_steps_hit, failed, largest energy error, accepted, rejected,
+    busiest)``; ``finite``: the final state is finite."""
+    base = lg.systems.n_link_pendulum(n)
+
+    def one(x):
+        mass, length, q0, qd0 = x
+        chain = _rods(base, mass, length)
+        q, qd, accepted, rejected, busiest, hit, failed = _adaptive_rollout(chain, q0, qd0, dt, steps, rtol, atol,
+                                                                           max_steps)
+        finite = jnp.all(jnp.isfinite(q[-1])) & jnp.all(jnp.isfinite(qd[-1]))
+        return finite, hit, failed, jnp.max(_energy_error(chain, q, qd)), accepted, rejected, busiest
+
+    return jax.jit(lambda *xs: jax.lax.map(one, xs))
+
+
+def _median_max(x, kind=float):
+    """``(median, max)`` of the array ``x`` as ``kind`` (``int`` for step counts), ``(None, None)`` when it is empty."""
+    return (kind(np.median(x)), kind(np.max(x))) if x.size else (None, None)
+
+
+def adaptive_stress(states, per, dt=1e-3, steps=500, rtol=1e-8, atol=1e-8, max_steps=4096):
+    """The error-controlled mode on the stress batch: for each chain size ``n`` of ``states``, the first ``states[n]``
+    of the ``per`` states that :func:`stress` draws for it (seed ``n``), run by :func:`_adaptive_rollout` and by RK4
+    at ``dt`` (the fixed-step sweep's outcome for the same states).
+
+    Per size: how many finish (no interval failed, final state finite), how many an interval's ``max_steps`` stopped,
+    how many ended non-finite without being stopped; the finished ones' largest energy error (median and worst, as in
+    :func:`stress`) and solver steps (accepted + rejected, median and worst; RK4 takes ``steps``); the most steps any
+    interval took (against ``max_steps``); the wall time per trajectory, run one after the other on the CPU, compile
+    excluded; and how many of the same states RK4 turns non-finite, and of those how many finish here."""
+    rows = []
+    for n, k in states.items():
+        mass, length, q, qd = (x[:k] for x in _batch(n, per, np.random.default_rng(n)))
+        rk4_ok, _, rk4_rel, _, _ = (np.asarray(x) for x in _stress_fn(n, dt, steps, 1)(mass, length, q, qd))
+        t = time.perf_counter()
+        run = _adaptive_fn(n, dt, steps, rtol, atol, max_steps).lower(mass, length, q, qd).compile()
+        compile_s = time.perf_counter() - t
+        t = time.perf_counter()
+        out = jax.block_until_ready(run(mass, length, q, qd))
+        wall = time.perf_counter() - t
+        finite, hit, failed, rel, accepted, rejected, busiest = (np.asarray(x) for x in out)
+        done = finite & ~failed
+        energy_median, energy_max = _median_max(rel[done])
+        steps_median, steps_max = _median_max((accepted + rejected)[done], int)
+        row = dict(n=n, states=k, finished=int(done.sum()), stopped_by_max_steps=int(hit.sum()),
+                   stopped_otherwise=int(np.sum(failed & ~hit)), nonfinite=int(np.sum(~finite & ~failed)),
+                   energy_error_median=energy_median, energy_error_max=energy_max,
+                   steps_median=steps_median, steps_max=steps_max,
+                   rejected_median=_median_max(rejected[done], int)[0], busiest_interval_steps=int(busiest.max()),
+                   wall_s_per_trajectory=wall / k, compile_s=compile_s,
+                   rk4_nonfinite=int(np.sum(~rk4_ok)), rk4_nonfinite_finished=int(np.sum(~rk4_ok & done)),
+                   rk4_energy_error_le_1e_2=int(np.sum(rk4_ok & (rk4_rel <= 1e-2))))
+        rows.append(row)
+        print(f"  adaptive stress n={n:2d}: {row}", flush=True)
+    return dict(solver="Tsit5", rtol=rtol, atol=atol, max_steps_per_interval=max_steps, dt=dt, steps=steps,
+                horizon_s=steps * dt, states_drawn_per_size=per, rows=rows)
 
 
 # ------------------------------------------------------------------------------ float32 vs float64
@@ -240,26 +356,25 @@ def _table(rows, keys):
     return "\n".join(lines)
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="reduced sweep")
-    args = ap.parse_args(argv)
-    results, img = outputs(args.quick)
-    suffix = "_quick" if args.quick else ""
-    path, plot_path = results / f"stability{suffix}.json", img / f"stability_gradients{suffix}.png"
-    t0 = time.perf_counter()
-    out = {"quick": args.quick, "device": str(jax.devices()[0]), "float": "float64 unless stated"}
+# the stress batch: its chain sizes and states in all (split evenly among them), by --quick
+STRESS = {False: ((2, 3, 5, 8, 12, 20), 10_000), True: ((2, 3, 5, 8), 1000)}
+# the error-controlled mode's states per chain size, by --quick: fewer where the adaptive solve costs more
+# (about 0.01, 0.07, 0.6, 1 and 3 s a trajectory at n = 3, 5, 8, 12, 20 on 2 shared cores: 3 minutes in all)
+ADAPTIVE_STATES = {False: {3: 400, 5: 200, 8: 50, 12: 30, 20: 20}, True: {3: 50, 5: 25, 8: 10}}
 
-    steps = 20_000 if args.quick else 100_000
+
+def _fixed_step_sweeps(out, quick, path, plot_path):
+    """Parts 1-4 into ``out``, written to ``path`` as they finish."""
+    steps = 20_000 if quick else 100_000
     print(f"energy drift over {steps} steps", flush=True)
     out["energy_drift"] = energy_drift(steps)
     print(_table(out["energy_drift"], ["system", "solver", "dt", "horizon_s", "first_half", "second_half", "max"]))
 
     print("float32 vs float64 parting times", flush=True)
-    out["parting"] = parting(steps=10_000 if args.quick else 30_000)
+    out["parting"] = parting(steps=10_000 if quick else 30_000)
     print(_table(out["parting"], ["system", "float32_parting_s", "perturbed_1e_7_parting_s", "float32_final_gap"]))
 
-    horizons = [10, 30, 100, 300, 1000] if args.quick else [10, 20, 50, 100, 200, 500, 1000, 2000, 5000]
+    horizons = [10, 30, 100, 300, 1000] if quick else [10, 20, 50, 100, 200, 500, 1000, 2000, 5000]
     print("gradient norm vs horizon (acrobot)", flush=True)
     out["gradient_growth"] = gradient_growth(horizons)
     print(_table(out["gradient_growth"], ["dtype", "horizon_s", "grad_norm", "rel_diff_vs_float64"]))
@@ -267,8 +382,7 @@ def main(argv=None):
     write_json(path, out)
 
     # the stress batch last: compiling 12- and 20-link chains is the slow part
-    sizes = (2, 3, 5, 8) if args.quick else (2, 3, 5, 8, 12, 20)
-    total = 1000 if args.quick else 10_000
+    sizes, total = STRESS[quick]
     print(f"stress: {total} random states, n in {sizes}", flush=True)
     out["stress"] = []
     for n in sizes:
@@ -277,9 +391,40 @@ def main(argv=None):
     print(_table(out["stress"], ["n", "states", "nonfinite", "unreported", "fd_nonfinite_at_start",
                                  "min_energy_error_before_blowup", "finite_energy_error_gt_1e_2",
                                  "rerun_with_8_substeps", "nonfinite_with_8_substeps"]))
-    out["total_wall_s"] = time.perf_counter() - t0
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="reduced sweep")
+    ap.add_argument("--adaptive-only", action="store_true",
+                    help="only the error-controlled stress sweep (2b): replaces its key in the JSON, keeps the rest")
+    args = ap.parse_args(argv)
+    results, img = outputs(args.quick)
+    suffix = "_quick" if args.quick else ""
+    path, plot_path = results / f"stability{suffix}.json", img / f"stability_gradients{suffix}.png"
+    t0 = time.perf_counter()
+    out = {"quick": args.quick, "device": str(jax.devices()[0]), "float": "float64 unless stated"}
+    if args.adaptive_only:
+        out = json.loads(path.read_text()) if path.exists() else out
+    else:
+        _fixed_step_sweeps(out, args.quick, path, plot_path)
+
+    sizes, total = STRESS[args.quick]
+    states = ADAPTIVE_STATES[args.quick]
+    print(f"adaptive stress: Tsit5 with error control on {sum(states.values())} of the stress states, "
+          f"{states} per chain size", flush=True)
+    t = time.perf_counter()
+    out["adaptive_stress"] = adaptive_stress(states, total // len(sizes))
+    out["adaptive_stress"]["wall_s"] = time.perf_counter() - t
+    print(_table(out["adaptive_stress"]["rows"], [
+        "n", "states", "finished", "stopped_by_max_steps", "nonfinite", "energy_error_median", "energy_error_max",
+        "steps_median", "steps_max", "busiest_interval_steps", "wall_s_per_trajectory", "rk4_nonfinite",
+        "rk4_nonfinite_finished"]))
+    if not args.adaptive_only:
+        out["total_wall_s"] = time.perf_counter() - t0
     write_json(path, out)
-    print(f"wrote {path} and {plot_path} ({out['total_wall_s']:.0f} s)")
+    written = path if args.adaptive_only else f"{path} and {plot_path}"
+    print(f"wrote {written} ({time.perf_counter() - t0:.0f} s)")
 
 
 if __name__ == "__main__":
