@@ -18,11 +18,13 @@ The acrobot (``lagrange.systems.acrobot()``), float64 on the CPU, dt = 0.01, rol
   dynamics evaluation, not per env-step of an integrator.
 - compile: seconds for the first call (trace + compile + run) of the batch-1024 forward and
   gradient functions.
-- scaling: n-link pendulums, n = 2 ... 32, semi-implicit Euler at batch 1024, rollouts of 20 steps:
-  lagrange forward and gradient and MuJoCo C per env-step, Pinocchio ABA (and its derivatives)
-  per call, each the minimum over 5 timed repeats (robust on a shared machine); the first calls'
-  wall and CPU seconds (CPU time is the cost of compiling on a busy
-  machine); the exponent of a least-squares fit ``t ~ n^p`` over n >= 8 (the recursive path).
+- scaling: n-link pendulums, n = 2 ... 64, semi-implicit Euler, rollouts of 20 steps, per env-step: lagrange
+  forward and gradient at batch 1024 (float64 and float32) and at batch 1 (float64), MuJoCo C at batch 1024
+  (2 threads) and batch 1, MJX and Brax at batch 1024 (n <= 4: MJX at n = 8 did not finish its first forward
+  call in 150 s), Pinocchio ABA (and its derivatives) per call,
+  each the minimum over 5 timed repeats (robust on a shared machine); lagrange's first calls in CPU seconds (the
+  cost of compiling on a busy machine); the largest difference between lagrange's and MuJoCo's trajectories; the
+  ratios to MuJoCo C and Pinocchio; the exponent of a least-squares fit ``t ~ n^p`` over n >= 8.
 
 Writes the acrobot table to ``benchmarks/results/throughput.json``, the scaling sweep to
 ``benchmarks/results/throughput_scaling.json`` and its plot to ``docs/img/throughput_scaling.png``
@@ -143,8 +145,12 @@ class MujocoC:
         ctrl = np.asarray(us) if self.model.nu else None
         nstep = us.shape[1]
         state = np.empty((B, nstep, self.nstate))
-        return lambda: self.rollout.rollout(self.model, self.datas, x0, ctrl, nstep=nstep, state=state,
-                                            persistent_pool=True)
+
+        def run():
+            self.rollout.rollout(self.model, self.datas, x0, ctrl, nstep=nstep, state=state, persistent_pool=True)
+            return state
+
+        return run
 
 
 def pinocchio_chain(chain):
@@ -206,16 +212,19 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="reduced sweep")
     ap.add_argument("--no-mjx", action="store_true")
-    ap.add_argument("--max-n", type=int, default=32, help="largest chain in the scaling sweep")
+    ap.add_argument("--max-n", type=int, default=64, help="largest chain in the scaling sweep")
+    ap.add_argument("--jax-engines-max-n", type=int, default=4,
+                    help="largest chain MJX and Brax are timed on (MJX at n = 8 did not finish its first forward call in 150 s)")
     ap.add_argument("--scaling-only", action="store_true", help="run only the n-link scaling sweep")
     args = ap.parse_args(argv)
     results, img = outputs(args.quick)
     suffix = "_quick" if args.quick else ""
-    ns = [n for n in ([2, 4, 8] if args.quick else [2, 4, 8, 12, 16, 20, 24, 32]) if n <= args.max_n]
+    ns = [n for n in ([2, 4, 8] if args.quick else SCALING_NS) if n <= args.max_n]
     if not args.scaling_only:
         acrobot_main([1, 64, 1024] if args.quick else [1, 64, 1024, 4096], args.quick, args.no_mjx,
                      results / f"throughput{suffix}.json")
-    scaling_main(ns, results / f"throughput_scaling{suffix}.json", img / f"throughput_scaling{suffix}.png")
+    scaling_main(ns, results / f"throughput_scaling{suffix}.json", img / f"throughput_scaling{suffix}.png",
+                 args.jax_engines_max_n)
 
 
 def acrobot_main(batches, quick, no_mjx, path):
@@ -295,56 +304,102 @@ def acrobot_main(batches, quick, no_mjx, path):
 
 
 SCALING_T = 20
+SCALING_NS = (2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64)
 
 
-def scaling_rows(ns):
-    """n-link pendulums (every joint actuated), SIE at batch 1024: cost per env-step against n."""
+def _trajectory_error(chain, mj, a):
+    """lagrange's batch-1024 rollouts against MuJoCo's (float64, same integrator), over every step of the rollouts
+    that stay finite in both: the largest |q - q_MuJoCo|, the largest |q_MuJoCo| (the scale it is measured at) and
+    how many of the rollouts stay finite in both."""
+    q0, qd0, us = a
+    traj = jax.jit(jax.vmap(lambda q, qd, u: lg.simulate(chain, q, qd, u, DT, lg.SemiImplicitEuler(), check=False).q))
+    q = np.asarray(traj(q0, qd0, us))[:, 1:]
+    qm = mj.make(*(np.asarray(x) for x in a))()[:, :, 1 : 1 + chain.n]
+    finite = np.all(np.isfinite(q) & np.isfinite(qm), axis=(1, 2))
+    if not finite.any():
+        return dict(max_abs_q_difference_to_mujoco=float("nan"), max_abs_q=float("nan"), rollouts_finite_in_both=0)
+    return dict(max_abs_q_difference_to_mujoco=float(np.max(np.abs(q - qm)[finite])),
+                max_abs_q=float(np.max(np.abs(qm[finite]))), rollouts_finite_in_both=int(finite.sum()))
+
+
+def scaling_rows(ns, jax_engines_max_n=4):
+    """n-link pendulums (every joint actuated), semi-implicit Euler: cost per env-step against n.
+
+    lagrange forward and gradient at batch 1024 (float64 and float32) and batch 1 (float64), MuJoCo C at batch 1024
+    (2 threads) and 1, MJX and Brax (batch 1024, n <= ``jax_engines_max_n``), Pinocchio's ABA and its derivatives per
+    call; lagrange's first calls in CPU seconds; the largest difference of lagrange's and MuJoCo's trajectories."""
     rows = []
     for n in ns:
         ch = lg.systems.n_link_pendulum(n, gear=1.0)
-        fwd, grad = lagrange_engine(ch, lg.SemiImplicitEuler())
+        row = dict(n=n)
+        for tag, B, dtype in (("", 1024, jnp.float64), ("_f32", 1024, jnp.float32), ("_batch1", 1, jnp.float64)):
+            chain = jax.tree.map(lambda x: x.astype(dtype) if isinstance(x, jax.Array) else x, ch)
+            fwd, grad = lagrange_engine(chain, lg.SemiImplicitEuler())
+            a = tuple(x.astype(dtype) for x in _inputs(n, n, B, T=SCALING_T))
+            t, _, first_cpu = time_jax(fwd, a, cpu=True, best=True)
+            tg, _, gfirst_cpu = time_jax(grad, a, cpu=True, best=True)
+            row |= {f"lagrange{tag}_us_per_env_step": t / (B * SCALING_T) * 1e6,
+                    f"lagrange{tag}_gradient_us_per_env_step": tg / (B * SCALING_T) * 1e6}
+            if not tag:
+                row |= dict(lagrange_first_call_cpu_s=first_cpu, lagrange_gradient_first_call_cpu_s=gfirst_cpu)
         a = _inputs(n, n, 1024, T=SCALING_T)
-        steps = 1024 * SCALING_T
-        t, first, first_cpu = time_jax(fwd, a, cpu=True, best=True)
-        tg, gfirst, gfirst_cpu = time_jax(grad, a, cpu=True, best=True)
         mj = MujocoC(ch, "Euler")
         tm = median_time(mj.make(*(np.asarray(x) for x in a)), repeats=5, min_time=0.05, best=True)
-        row = dict(n=n, lagrange_us_per_env_step=t / steps * 1e6, lagrange_gradient_us_per_env_step=tg / steps * 1e6,
-                   lagrange_first_call_s=first, lagrange_first_call_cpu_s=first_cpu,
-                   lagrange_gradient_first_call_s=gfirst, lagrange_gradient_first_call_cpu_s=gfirst_cpu,
-                   mujoco_c_us_per_env_step=tm / steps * 1e6)
+        row["mujoco_c_us_per_env_step"] = tm / (1024 * SCALING_T) * 1e6
+        row |= _trajectory_error(ch, mj, a)
+        mj1 = MujocoC(ch, "Euler", nthread=1)
+        a1 = _inputs(n, n, 1, T=SCALING_T)
+        tm1 = median_time(mj1.make(*(np.asarray(x) for x in a1)), repeats=5, min_time=0.05, best=True)
+        row["mujoco_c_batch1_us_per_env_step"] = tm1 / SCALING_T * 1e6
+        if n <= jax_engines_max_n:
+            for name, make in (("mjx", lambda: mjx_engine(ch, "Euler")), ("brax", lambda: brax_engine(ch))):
+                fwd, grad = make()
+                t, _ = time_jax(fwd, a, best=True)
+                tg, _ = time_jax(grad, a, best=True)
+                row |= {f"{name}_us_per_env_step": t / (1024 * SCALING_T) * 1e6,
+                        f"{name}_gradient_us_per_env_step": tg / (1024 * SCALING_T) * 1e6}
         pm = pinocchio_chain(ch)
         if pm is not None:
             aba, aba_d = pinocchio_times(pm, n, repeats=5, calls=1000, best=True)
             row |= dict(pinocchio_aba_us_per_call=aba * 1e6, pinocchio_aba_derivatives_us_per_call=aba_d * 1e6)
         rows.append(row)
-        print(f"  n={n:2d} {row}", flush=True)
+        print(f"  n={n:2d} " + ", ".join(f"{k}={v:.3g}" for k, v in row.items() if k != "n"), flush=True)
     return rows
 
 
 def scaling_fit(rows, n_min=8):
-    """Exponents p of least-squares fits t ~ n^p over n >= n_min, and the n = 20 ratios to Pinocchio."""
+    """Exponents p of least-squares fits t ~ n^p over n >= n_min, and lagrange's ratios to MuJoCo C and Pinocchio."""
     fit = {}
     sel = [r for r in rows if r["n"] >= n_min]
-    if len(sel) >= 2:
-        ln = np.log([r["n"] for r in sel])
-        for key in ("lagrange_us_per_env_step", "lagrange_gradient_us_per_env_step", "mujoco_c_us_per_env_step",
-                    "pinocchio_aba_us_per_call"):
-            if key in sel[0]:
-                fit[f"exponent_{key}_n>={n_min}"] = float(np.polyfit(ln, np.log([r[key] for r in sel]), 1)[0])
+    keys = [k for k in rows[0] if k.endswith(("us_per_env_step", "us_per_call"))] if rows else []
+    for key in keys:
+        pts = [(r["n"], r[key]) for r in sel if key in r]
+        if len(pts) >= 2:
+            fit[f"exponent_{key}_n>={n_min}"] = float(np.polyfit(*np.log(np.array(pts)).T, 1)[0])
     for r in rows:
-        if r["n"] == 20 and "pinocchio_aba_us_per_call" in r:
-            fit["n20_forward_over_pinocchio_aba (target <= 3)"] = r["lagrange_us_per_env_step"] / r["pinocchio_aba_us_per_call"]
-            fit["n20_gradient_over_pinocchio_aba_derivatives"] = (
-                r["lagrange_gradient_us_per_env_step"] / r["pinocchio_aba_derivatives_us_per_call"])
+        r["forward_speedup_over_mujoco_c"] = r["mujoco_c_us_per_env_step"] / r["lagrange_us_per_env_step"]
+        if "pinocchio_aba_derivatives_us_per_call" in r:
+            r["gradient_speedup_over_pinocchio_aba_derivatives"] = (
+                r["pinocchio_aba_derivatives_us_per_call"] / r["lagrange_gradient_us_per_env_step"])
+    goal = [r for r in rows if 4 <= r["n"] <= 32]
+    if goal:
+        fit["min_forward_speedup_over_mujoco_c_n4..32 (target >= 5)"] = min(r["forward_speedup_over_mujoco_c"]
+                                                                             for r in goal)
+        if "gradient_speedup_over_pinocchio_aba_derivatives" in goal[0]:
+            fit["min_gradient_speedup_over_pinocchio_aba_derivatives_n4..32 (target >= 3)"] = min(
+                r["gradient_speedup_over_pinocchio_aba_derivatives"] for r in goal)
+        fit["max_abs_q_difference_to_mujoco_n4..32 (target <= 1e-8)"] = max(r["max_abs_q_difference_to_mujoco"]
+                                                                             for r in goal)
+        fit["max_relative_q_difference_to_mujoco_n4..32"] = max(r["max_abs_q_difference_to_mujoco"] / r["max_abs_q"]
+                                                                 for r in goal)
     return fit
 
 
-def scaling_main(ns, path, plot_path):
+def scaling_main(ns, path, plot_path, jax_engines_max_n=4):
     """The n-link scaling sweep: its rows, the fitted exponents and the plot."""
     import mujoco
 
-    out = dict(cpu_count=os.cpu_count(), mujoco=mujoco.__version__, dt=DT, steps=SCALING_T, batch=1024,
+    out = dict(cpu_count=os.cpu_count(), mujoco=mujoco.__version__, jax=jax.__version__, dt=DT, steps=SCALING_T,
                system="n_link_pendulum(n, gear=1.0)", integrator="SemiImplicitEuler", pinocchio=None)
     try:
         import pinocchio
@@ -355,7 +410,7 @@ def scaling_main(ns, path, plot_path):
     from lagrange.dynamics import RECURSIVE_MIN
 
     out["recursive_min"] = RECURSIVE_MIN
-    out["scaling"] = scaling_rows(ns)
+    out["scaling"] = scaling_rows(ns, jax_engines_max_n)
     out["scaling_fit"] = scaling_fit(out["scaling"])
     _print_scaling(out)
     _plot_scaling(out["scaling"], plot_path)
@@ -363,21 +418,40 @@ def scaling_main(ns, path, plot_path):
     print(f"wrote {path} and {plot_path}")
 
 
+SCALING_COLUMNS = (
+    ("n", "n", "{:d}"),
+    ("lagrange_us_per_env_step", "lagrange forward", "{:.3g}"),
+    ("lagrange_gradient_us_per_env_step", "lagrange gradient", "{:.3g}"),
+    ("mujoco_c_us_per_env_step", "MuJoCo C", "{:.3g}"),
+    ("forward_speedup_over_mujoco_c", "forward ÷ MuJoCo C", "{:.1f}×"),
+    ("pinocchio_aba_us_per_call", "Pinocchio ABA", "{:.3g}"),
+    ("pinocchio_aba_derivatives_us_per_call", "Pinocchio ABA derivatives", "{:.3g}"),
+    ("gradient_speedup_over_pinocchio_aba_derivatives", "gradient ÷ ABA derivatives", "{:.1f}×"),
+    ("mjx_us_per_env_step", "MJX forward", "{:.3g}"),
+    ("mjx_gradient_us_per_env_step", "MJX gradient", "{:.3g}"),
+    ("brax_us_per_env_step", "Brax forward", "{:.3g}"),
+    ("brax_gradient_us_per_env_step", "Brax gradient", "{:.3g}"),
+    ("lagrange_f32_us_per_env_step", "lagrange float32 forward", "{:.3g}"),
+    ("lagrange_f32_gradient_us_per_env_step", "lagrange float32 gradient", "{:.3g}"),
+    ("lagrange_batch1_us_per_env_step", "lagrange batch 1 forward", "{:.3g}"),
+    ("lagrange_batch1_gradient_us_per_env_step", "lagrange batch 1 gradient", "{:.3g}"),
+    ("mujoco_c_batch1_us_per_env_step", "MuJoCo C batch 1", "{:.3g}"),
+    ("lagrange_first_call_cpu_s", "forward compile (CPU s)", "{:.2f}"),
+    ("lagrange_gradient_first_call_cpu_s", "gradient compile (CPU s)", "{:.2f}"),
+    ("max_abs_q_difference_to_mujoco", "max abs q − MuJoCo's", "{:.1e}"),
+    ("max_abs_q", "max abs q", "{:.3g}"),
+    ("rollouts_finite_in_both", "rollouts finite in both", "{:d}"),
+)
+
+
 def _print_scaling(out):
     rows = out["scaling"]
     if not rows:
         return
-    cols = [("n", "n", "{:d}"), ("lagrange_us_per_env_step", "lagrange fwd µs/step", "{:.3g}"),
-            ("lagrange_gradient_us_per_env_step", "lagrange grad µs/step", "{:.3g}"),
-            ("pinocchio_aba_us_per_call", "Pinocchio ABA µs/call", "{:.3g}"),
-            ("pinocchio_aba_derivatives_us_per_call", "Pinocchio ABA derivs µs/call", "{:.3g}"),
-            ("mujoco_c_us_per_env_step", "MuJoCo C µs/step", "{:.3g}"),
-            ("lagrange_first_call_cpu_s", "fwd first call CPU s", "{:.2f}"),
-            ("lagrange_gradient_first_call_cpu_s", "grad first call CPU s", "{:.2f}")]
-    cols = [c for c in cols if c[0] in rows[0]]
-    print("\n| " + " | ".join(c[1] for c in cols) + " |\n|" + "---|" * len(cols))
+    cols = [c for c in SCALING_COLUMNS if any(c[0] in r for r in rows)]
+    print("\n| " + " | ".join(c[1] for c in cols) + " |\n|" + "---:|" * len(cols))
     for r in rows:
-        print("| " + " | ".join(f.format(r[k]) for k, _, f in cols) + " |")
+        print("| " + " | ".join(f.format(r[k]) if k in r else "—" for k, _, f in cols) + " |")
     for k, v in out.get("scaling_fit", {}).items():
         print(f"{k}: {v:.3g}")
 
@@ -404,23 +478,27 @@ def _plot_scaling(rows, path):
 
     if not rows:
         return
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    series = (
+        ("lagrange_us_per_env_step", "o-", "lagrange forward, batch 1024, per env-step"),
+        ("lagrange_gradient_us_per_env_step", "o--", "lagrange gradient, batch 1024, per env-step"),
+        ("mujoco_c_us_per_env_step", "^-", "MuJoCo C, 2 threads, batch 1024, per env-step"),
+        ("mjx_us_per_env_step", "v-", "MJX forward, batch 1024, per env-step"),
+        ("mjx_gradient_us_per_env_step", "v--", "MJX gradient, batch 1024, per env-step"),
+        ("brax_us_per_env_step", "d-", "Brax forward, batch 1024, per env-step"),
+        ("brax_gradient_us_per_env_step", "d--", "Brax gradient, batch 1024, per env-step"),
+        ("pinocchio_aba_us_per_call", "s-", "Pinocchio ABA, per call (Python)"),
+        ("pinocchio_aba_derivatives_us_per_call", "s--", "Pinocchio ABA derivatives, per call (Python)"),
+    )
+    for key, style, label in series:
+        pts = [(r["n"], r[key]) for r in rows if key in r]
+        if pts:
+            ax.loglog(*np.array(pts).T, style, label=label, ms=4)
     n = np.array([r["n"] for r in rows], float)
-    fig, ax = plt.subplots(figsize=(5.5, 4))
-    ax.loglog(n, [r["lagrange_us_per_env_step"] for r in rows], "o-", label="lagrange SIE, batch 1024, per env-step")
-    if "lagrange_gradient_us_per_env_step" in rows[0]:
-        ax.loglog(n, [r["lagrange_gradient_us_per_env_step"] for r in rows], "o--",
-                  label="lagrange SIE gradient, batch 1024, per env-step")
-    ax.loglog(n, [r["mujoco_c_us_per_env_step"] for r in rows], "^-", label="MuJoCo C Euler, 2 threads, per env-step")
-    if "pinocchio_aba_us_per_call" in rows[0]:
-        ax.loglog(n, [r["pinocchio_aba_us_per_call"] for r in rows], "s-", label="Pinocchio ABA, per call (Python)")
-        ax.loglog(n, [r["pinocchio_aba_derivatives_us_per_call"] for r in rows], "s--",
-                  label="Pinocchio ABA derivatives, per call (Python)")
-    k = int(np.argmin(np.abs(n - 8)))  # reference slopes through lagrange's n = 8 point
-    ref = rows[k]["lagrange_us_per_env_step"]
-    ax.loglog(n, ref * (n / n[k]) ** 2, "k:", lw=0.8, label="O(n^2)")
-    ax.loglog(n, ref * (n / n[k]), "k--", lw=0.8, label="O(n)")
-    ax.set(xlabel="links n", ylabel="microseconds", title="cost per step against chain length")
-    ax.legend(fontsize=7)
+    k = int(np.argmin(np.abs(n - 8)))  # reference slope through lagrange's n = 8 point
+    ax.loglog(n, rows[k]["lagrange_us_per_env_step"] * (n / n[k]), "k:", lw=0.8, label="O(n)")
+    ax.set(xlabel="links n", ylabel="microseconds", title="cost per step against chain length (float64, SIE)")
+    ax.legend(fontsize=6.5)
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
