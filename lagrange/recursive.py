@@ -24,8 +24,8 @@ Body i's reference point is its joint origin ``p_i`` and every frame keeps the w
 and the joint's motion subspace is ``S_i = (1, 0, 0)`` (revolute) or ``(0, e(phi_{i-1} + axis_i))``
 (prismatic). Gravity enters as the base acceleration ``a_0 = (0, 0, g)``. Then
 
-- kinematics: ``v_i = X_i v_{i-1} + S_i qd_i`` and ``c_i = v_i x S_i qd_i``; both recursions
-  are linear and are evaluated as cumulative sums (no loop);
+- kinematics: ``v_i = X_i v_{i-1} + S_i qd_i`` and ``c_i = v_i x S_i qd_i``, with the link angles, their
+  sines and cosines and the joint offsets ``r_i``: one ``jax.lax.scan`` outward over the links;
 - RNEA: ``a_i = X_i a_{i-1} + S_i qdd_i + c_i``, ``f_i = I_i a_i + v_i x* I_i v_i``,
   ``tau_i = S_i . sum_{k >= i} X_{i<-k}^T f_k`` (cumulative sums again);
 - CRBA: composite inertias ``Ic_i = I_i + X_{i+1}^T Ic_{i+1} X_{i+1}`` (cumulative sums of
@@ -35,7 +35,7 @@ and the joint's motion subspace is ``S_i = (1, 0, 0)`` (revolute) or ``(0, e(phi
   ``u_i = tau_i - S_i . pA_i``, ``Ia_i = IA_i - U_i U_i^T / D_i``,
   ``pa_i = pA_i + Ia_i c_i + U_i u_i / D_i``; outward, ``a'_i = X_i a_{i-1} + c_i``,
   ``qdd_i = (u_i - U_i . a'_i) / D_i``, ``a_i = a'_i + S_i qdd_i``. The two passes are
-  ``jax.lax.scan`` over the links. Armature and an implicit-damping term ``h damping_i`` add to
+  ``jax.lax.scan`` over the links, each step's inputs and outputs separate arrays of the batch's shape. Armature and an implicit-damping term ``h damping_i`` add to
   ``D_i``, which is adding them to ``M_ii``.
 
 Functions take ``q``/``qd``/``u`` with any leading batch dimensions (broadcast against each
