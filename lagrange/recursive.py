@@ -35,8 +35,9 @@ and the joint's motion subspace is ``S_i = (1, 0, 0)`` (revolute) or ``(0, e(phi
   ``u_i = tau_i - S_i . pA_i``, ``Ia_i = IA_i - U_i U_i^T / D_i``,
   ``pa_i = pA_i + Ia_i c_i + U_i u_i / D_i``; outward, ``a'_i = X_i a_{i-1} + c_i``,
   ``qdd_i = (u_i - U_i . a'_i) / D_i``, ``a_i = a'_i + S_i qdd_i``. The two passes are
-  ``jax.lax.scan`` over the links, each step's inputs and outputs separate arrays of the batch's shape. Armature and an implicit-damping term ``h damping_i`` add to
-  ``D_i``, which is adding them to ``M_ii``.
+  ``jax.lax.scan`` over the links, each step's inputs and outputs separate arrays of the batch's
+  shape. Armature and an implicit-damping term ``h damping_i`` add to ``D_i``, which is adding them
+  to ``M_ii``.
 
 Functions take ``q``/``qd``/``u`` with any leading batch dimensions (broadcast against each
 other) and return the same quantities as :mod:`lagrange.dynamics`.
@@ -130,9 +131,11 @@ class _Kin:
         off = np.asarray(chain.frame_offsets(), float)
         poff = np.concatenate([[0.0], off[:-1]])  # the parent frame's offset
         L = lambda x: _per_link(x, dtype)  # noqa: E731
-        lp = chain.length
-        lp = jnp.concatenate([jnp.zeros((1,), jnp.result_type(lp)), lp[:-1]]) if not isinstance(lp, np.ndarray) \
-            else np.concatenate([[0.0], lp[:-1]])
+        lp = chain.length  # the parent's length, 0 for the first link
+        if isinstance(lp, np.ndarray):
+            lp = np.concatenate([[0.0], lp[:-1]])
+        else:
+            lp = jnp.concatenate([jnp.zeros((1,), lp.dtype), lp[:-1]])
         cs_p = np.array([_unitvec.cos_sin(o) for o in poff]).reshape(n, 2)
         xs = dict(q=q)
         params = dict(ld=lp * cs_p[:, 0], le=lp * cs_p[:, 1])
@@ -145,9 +148,8 @@ class _Kin:
         # the centre of mass c_d d(phi + off) + c_e e(phi + off), on d(phi) and e(phi)
         cd, ce = com * cs[:, 0] - cn * cs[:, 1], com * cs[:, 1] + cn * cs[:, 0]
         params |= dict(mcd=m * cd, mce=m * ce)
-        self.m = _param(jnp.asarray(m, dtype), nb) if not isinstance(L(m), float) else L(m)
         J = chain.inertia + m * (com * com + cn * cn)
-        self.J = _param(jnp.asarray(J, dtype), nb) if not isinstance(L(J), float) else L(J)
+        self.m, self.J = (v if isinstance(v, float) else _param(v, nb) for v in (L(m), L(J)))
         if qd is not None:
             xs["qd"] = qd
             params |= dict(m=m, J=J)
@@ -465,16 +467,11 @@ def _split_links(xs, params, nb):
     (each (n, 1, ..., 1) as :func:`_param` shapes them, a constant or None): the arrays to slice link by link (the
     parameters as (n,)), and the constants (``None`` read as 0) that stay out of the loop."""
     arrays, consts = {}, {}
-    for key, v in xs.items():
+    for key, v in (xs | params).items():
         if v is None or s.is_const(v):
             consts[key] = 0.0 if v is None else v
         else:
-            arrays[key] = v
-    for key, v in params.items():
-        if v is None or s.is_const(v):
-            consts[key] = 0.0 if v is None else v
-        else:
-            arrays[key] = jnp.reshape(v, v.shape[:1])
+            arrays[key] = jnp.reshape(v, v.shape[:1]) if key in params else v
     return arrays, consts
 
 
