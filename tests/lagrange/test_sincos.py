@@ -1,4 +1,4 @@
-"""The float64 sine and cosine of lagrange._sincos against NumPy's, and their derivatives."""
+"""The float64 and float32 sines and cosines of lagrange._sincos against NumPy's, and their derivatives."""
 
 import jax
 import jax.numpy as jnp
@@ -16,6 +16,18 @@ def test_sincos_matches_numpy_to_an_ulp_of_one(scale):
     assert s.dtype == jnp.float64
     np.testing.assert_allclose(np.asarray(s), np.sin(x), rtol=0, atol=2 * np.finfo(float).eps)
     np.testing.assert_allclose(np.asarray(c), np.cos(x), rtol=0, atol=2 * np.finfo(float).eps)
+
+
+@pytest.mark.parametrize("scale", [4.0, 1e5])
+def test_float32_sincos_within_a_float32_ulp_at_one(scale):
+    x = np.random.default_rng(1).uniform(-scale, scale, 100_000).astype(np.float32)
+    x = np.concatenate([x, (np.arange(-64, 65) * (np.pi / 4)).astype(np.float32)])
+    s, c = jax.jit(sincos)(jnp.asarray(x))
+    assert s.dtype == c.dtype == jnp.float32
+    exact = x.astype(np.float64)  # the float32 angle itself, so only sincos's own error is measured
+    eps = float(np.finfo(np.float32).eps)
+    np.testing.assert_allclose(np.asarray(s, np.float64), np.sin(exact), rtol=0, atol=eps)
+    np.testing.assert_allclose(np.asarray(c, np.float64), np.cos(exact), rtol=0, atol=eps)
 
 
 def test_sincos_derivatives_and_float32():
