@@ -121,7 +121,11 @@ class _Kin:
 
     Computed by one ``lax.scan`` outward over the links (:func:`_scan`): each step is a few dozen multiplies on
     arrays of the batch's shape, which XLA's CPU backend vectorises, where cumulative sums over the link axis
-    (``reduce_window``) and the angles' sines recomputed in every kernel that read them cost several times more.
+    (``reduce_window``) cost several times more. The link angles' sines and cosines come from the angle-addition
+    formulas on the joint angles' (one :func:`sincos` of every joint before the scan): a polynomial sine inside the
+    step cost two kernels per link (one per output, each evaluating both polynomials), 10% of the forward step at
+    n = 32. Against the exact sines of the summed angles the errors are <= 1.3e-15 at n = 32 and 1.9e-15 at n = 64
+    (``tests/lagrange/test_recursive.py``).
     """
 
     def __init__(self, chain: Chain, q, qd, nb: int):
@@ -137,7 +141,9 @@ class _Kin:
         else:
             lp = jnp.concatenate([jnp.zeros((1,), lp.dtype), lp[:-1]])
         cs_p = np.array([_unitvec.cos_sin(o) for o in poff]).reshape(n, 2)
-        xs = dict(q=q)
+        # the joint angles' sines and cosines, every link at once (a prismatic joint's: 0 and 1)
+        sq, cq = sincos(q if rev.all() else q * _param(jnp.asarray(rev, dtype), nb))
+        xs = dict(sq=sq, cq=cq) | ({} if rev.all() else dict(q=q))
         params = dict(ld=lp * cs_p[:, 0], le=lp * cs_p[:, 1])
         if not rev.all():
             axes = np.asarray(chain.axes) + poff
@@ -165,10 +171,11 @@ class _Kin:
 
         def step(carry, x):
             x = {**consts, **x}
-            phi, sp, cp = carry[:3]
-            qi = x["q"]
-            phi = s.add(phi, s.mul(x.get("rev", 1.0), qi))
-            sin, cos = sincos(phi)
+            sp, cp = carry[:2]
+            qi = x.get("q")
+            # phi_i = phi_{i-1} + q_i (revolute): the angle-addition formulas on the joint angle's sine and cosine
+            sin = s.add(s.mul(sp, x["cq"]), s.mul(cp, x["sq"]))
+            cos = s.sub(s.mul(cp, x["cq"]), s.mul(sp, x["sq"]))
             # the parent's tip l d(phi + off) = l cos(off) d(phi) + l sin(off) e(phi), d = (sin, -cos), e = (cos, sin)
             ld, le = x["ld"], x["le"]
             rx = s.add(s.mul(ld, sp), s.mul(le, cp))
@@ -186,8 +193,8 @@ class _Kin:
             if not isinstance(S[1], float):
                 out |= dict(s0=S[0], s1=S[1], s2=S[2])
             if qd is None:
-                return (phi, sin, cos), _arrays(out, zero)
-            w, vx, vz = carry[3:]
+                return (sin, cos), _arrays(out, zero)
+            w, vx, vz = carry[2:]
             qdi = x["qd"]
             sw, svx, svz = s.mul(S[0], qdi), s.mul(S[1], qdi), s.mul(S[2], qdi)
             vx = s.add(s.add(vx, s.mul(s.neg(w), rz)), svx)
@@ -199,9 +206,9 @@ class _Kin:
             t, Fx, Fz = _momentum(x["J"], hx, hz, x["m"], w, vx, vz)
             out |= dict(w=w, vx=vx, vz=vz, cx=cx, cz=cz,
                         pt=s.sub(s.mul(vx, Fz), s.mul(vz, Fx)), px=s.neg(s.mul(w, Fz)), pz=s.mul(w, Fx))
-            return (phi, sin, cos) + _arrays((w, vx, vz), zero), _arrays(out, zero)
+            return (sin, cos) + _arrays((w, vx, vz), zero), _arrays(out, zero)
 
-        init = (zero, zero, zero + 1.0) + ((zero, zero, zero) if qd is not None else ())
+        init = (zero, zero + 1.0) + ((zero, zero, zero) if qd is not None else ())
         _, ys = _scan(step, init, xs)
         self.sin, self.cos, self.rx, self.rz, self.hx, self.hz = (ys[k] for k in ("sin", "cos", "rx", "rz", "hx", "hz"))
         self.S = (ys["s0"], ys["s1"], ys["s2"]) if "s0" in ys else (1.0, 0.0, 0.0)
@@ -438,7 +445,9 @@ def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, p
         c2 = s.add(s.add(c, s.mul(qx, e)), s.mul(qz, f))
         a = s.add(s.add(a, s.mul(qx, s.add(b, b2))), s.mul(qz, s.add(c, c2)))
         pt = s.add(s.add(pt, s.mul(qx, px)), s.mul(qz, pz))
-        out = dict(W1=W1, W2=W2, inv=inv, uu=uu) | ({} if revolute else dict(W0=W0))  # revolute: W0 = U0 / D = 1
+        out = dict(W1=W1, W2=W2, ui=uu * inv) | ({} if revolute else dict(W0=W0))  # revolute: W0 = U0 / D = 1
+        if pivots:
+            out["inv"] = inv
         return _arrays((a, b2, c2, d, e, f, pt, px, pz), zero), _arrays(out, zero)
 
     _, ys = _scan(inward, (zero,) * 9, xs, reverse=True)
@@ -450,7 +459,7 @@ def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, p
         al, ax, az = acc
         ax = s.add(s.sub(ax, s.mul(al, y["rz"])), y["cx"])
         az = s.add(s.add(az, s.mul(al, y["rx"])), y["cz"])
-        qdd = s.sub(y["uu"] * y["inv"], s.add(s.add(s.mul(y["W0"], al), s.mul(y["W1"], ax)), s.mul(y["W2"], az)))
+        qdd = s.sub(y["ui"], s.add(s.add(s.mul(y["W0"], al), s.mul(y["W1"], ax)), s.mul(y["W2"], az)))
         al = s.add(al, s.mul(y["s0"], qdd))
         ax, az = s.add(ax, s.mul(y["s1"], qdd)), s.add(az, s.mul(y["s2"], qdd))
         return _arrays((al, ax, az), zero), qdd

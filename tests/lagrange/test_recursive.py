@@ -220,3 +220,17 @@ def test_compiled_program_does_not_grow_with_n():
     t, c = time.perf_counter(), time.process_time()
     jax.jit(fwd).lower(*args).compile()
     print(f"n = 32 forward compile: {time.perf_counter() - t:.2f} s wall, {time.process_time() - c:.2f} s CPU")
+
+
+@pytest.mark.parametrize("n", [32, 64])
+def test_link_angles_sines_by_angle_addition_stay_exact(n):
+    """The kinematics scan forms the link angles' sines and cosines by the angle-addition formulas from the joint
+    angles': their rounding adds up over the links. Against the exact sines of the summed angles (long double)
+    the error stays under 20 float64 ulps at 1 (measured 1.3e-15 at n = 32, 1.9e-15 at n = 64)."""
+    chain = dynamics._folded(lg.systems.n_link_pendulum(n))
+    q = np.random.default_rng(0).uniform(-3, 3, (n, 4096))
+    k = recursive._Kin(chain, jnp.asarray(q), None, 1)
+    phi = np.cumsum(q.astype(np.longdouble), axis=0)
+    tol = 20 * np.finfo(np.float64).eps
+    assert float(np.max(np.abs(np.asarray(k.sin) - np.sin(phi)))) <= tol
+    assert float(np.max(np.abs(np.asarray(k.cos) - np.cos(phi)))) <= tol
