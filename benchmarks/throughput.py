@@ -24,8 +24,9 @@ The acrobot (``lagrange.systems.acrobot()``), float64 on the CPU, dt = 0.01, rol
   call in 150 s), Pinocchio ABA (and its derivatives) per call,
   each the minimum over 5 timed repeats (robust on a shared machine; lagrange's float64 forward and MuJoCo C at
   batch 1024, whose ratio is the headline, over 4 more rounds that alternate between the two); lagrange's first calls in CPU seconds (the
-  cost of compiling on a busy machine); the largest difference between lagrange's and MuJoCo's trajectories; the
-  ratios to MuJoCo C and Pinocchio; the exponent of a least-squares fit ``t ~ n^p`` over n >= 8.
+  cost of compiling on a busy machine); the largest difference between lagrange's and MuJoCo's trajectories, how far
+  MuJoCo's own move when every initial angle moves by one ulp, and lagrange's against Pinocchio's ABA stepped by the
+  same integrator (all 1024 rollouts, in a Python loop); the ratios to MuJoCo C and Pinocchio; the exponent of a least-squares fit ``t ~ n^p`` over n >= 8.
 
 Writes the acrobot table to ``benchmarks/results/throughput.json``, the scaling sweep to
 ``benchmarks/results/throughput_scaling.json`` and its plot to ``docs/img/throughput_scaling.png``
@@ -312,16 +313,48 @@ SCALING_NS = (2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64)
 def _trajectory_error(chain, mj, a):
     """lagrange's batch-1024 rollouts against MuJoCo's (float64, same integrator), over every step of the rollouts
     that stay finite in both: the largest |q - q_MuJoCo|, the largest |q_MuJoCo| (the scale it is measured at) and
-    how many of the rollouts stay finite in both."""
-    q0, qd0, us = a
+    how many of the rollouts stay finite in both; MuJoCo's own rounding sensitivity (the largest change of its
+    trajectories when every initial angle moves by one ulp); with Pinocchio installed, the largest |q - q_Pinocchio|
+    against Pinocchio's ABA stepped by the same semi-implicit Euler, a third, independent reference."""
+    q0, qd0, us = (np.asarray(x) for x in a)
     traj = jax.jit(jax.vmap(lambda q, qd, u: lg.simulate(chain, q, qd, u, DT, lg.SemiImplicitEuler(), check=False).q))
     q = np.asarray(traj(q0, qd0, us))[:, 1:]
-    qm = mj.make(*(np.asarray(x) for x in a))()[:, :, 1 : 1 + chain.n]
+    qm = mj.make(q0, qd0, us)()[:, :, 1 : 1 + chain.n]
     finite = np.all(np.isfinite(q) & np.isfinite(qm), axis=(1, 2))
     if not finite.any():
         return dict(max_abs_q_difference_to_mujoco=float("nan"), max_abs_q=float("nan"), rollouts_finite_in_both=0)
-    return dict(max_abs_q_difference_to_mujoco=float(np.max(np.abs(q - qm)[finite])),
-                max_abs_q=float(np.max(np.abs(qm[finite]))), rollouts_finite_in_both=int(finite.sum()))
+    qm_ulp = mj.make(np.nextafter(q0, np.inf), qd0, us)()[:, :, 1 : 1 + chain.n]
+    both = finite & np.all(np.isfinite(qm_ulp), axis=(1, 2))
+    out = dict(max_abs_q_difference_to_mujoco=float(np.max(np.abs(q - qm)[finite])),
+               max_abs_q=float(np.max(np.abs(qm[finite]))), rollouts_finite_in_both=int(finite.sum()),
+               mujoco_one_ulp_spread=float(np.max(np.abs(qm_ulp - qm)[both])))
+    model = pinocchio_chain(chain)
+    if model is not None:
+        qp = pinocchio_rollouts(model, chain, q0, qd0, us)
+        fin = finite & np.all(np.isfinite(qp), axis=(1, 2))
+        out["max_abs_q_difference_to_pinocchio"] = float(np.max(np.abs(q - qp)[fin]))
+    return out
+
+
+def pinocchio_rollouts(model, chain, q0, qd0, us):
+    """Pinocchio's ABA stepped by semi-implicit Euler from each (q0, qd0) under ``us``: q of shape (B, T, n).
+
+    Its revolute joints turn about +y, ours about -y (``d(phi) = (sin phi, -cos phi)``): the chain is mirror-symmetric,
+    so its angles, velocities and torques are ours negated (checked on one call)."""
+    import pinocchio as pin
+
+    data = model.createData()
+    ours = np.asarray(lg.forward_dynamics(chain, jnp.asarray(q0[0]), jnp.asarray(qd0[0]), jnp.asarray(us[0, 0])))
+    if not np.allclose(-pin.aba(model, data, -q0[0], -qd0[0], -us[0, 0]), ours, rtol=1e-9, atol=1e-9):
+        raise RuntimeError("Pinocchio's model does not mirror the chain: its ABA disagrees with forward_dynamics")
+    out = np.empty(us.shape[:2] + (chain.n,))
+    for b in range(us.shape[0]):
+        x, v = -q0[b], -qd0[b]
+        for t in range(us.shape[1]):
+            v = v + DT * pin.aba(model, data, x, v, -us[b, t])
+            x = x + DT * v
+            out[b, t] = -x
+    return out
 
 
 def scaling_rows(ns, jax_engines_max_n=4):
@@ -407,6 +440,10 @@ def scaling_fit(rows, n_min=8):
                                                                              for r in goal)
         fit["max_relative_q_difference_to_mujoco_n4..32"] = max(r["max_abs_q_difference_to_mujoco"] / r["max_abs_q"]
                                                                  for r in goal)
+        fit["max_mujoco_one_ulp_spread_n4..32"] = max(r["mujoco_one_ulp_spread"] for r in goal)
+        if "max_abs_q_difference_to_pinocchio" in goal[0]:
+            fit["max_abs_q_difference_to_pinocchio_n4..32 (target <= 1e-8)"] = max(
+                r["max_abs_q_difference_to_pinocchio"] for r in goal)
     return fit
 
 
@@ -454,6 +491,8 @@ SCALING_COLUMNS = (
     ("lagrange_first_call_cpu_s", "forward compile (CPU s)", "{:.2f}"),
     ("lagrange_gradient_first_call_cpu_s", "gradient compile (CPU s)", "{:.2f}"),
     ("max_abs_q_difference_to_mujoco", "max abs q − MuJoCo's", "{:.1e}"),
+    ("mujoco_one_ulp_spread", "MuJoCo's own 1-ulp spread", "{:.1e}"),
+    ("max_abs_q_difference_to_pinocchio", "max abs q − Pinocchio's", "{:.1e}"),
     ("max_abs_q", "max abs q", "{:.3g}"),
     ("rollouts_finite_in_both", "rollouts finite in both", "{:d}"),
 )
