@@ -21,7 +21,8 @@ The acrobot (``lagrange.systems.acrobot()``), float64 on the CPU, dt = 0.01, rol
 - scaling: n-link pendulums, n = 2 ... 64, semi-implicit Euler, rollouts of 20 steps, per env-step: lagrange
   forward and gradient at batch 1024 (float64 and float32) and at batch 1 (float64), MuJoCo C at batch 1024
   (2 threads) and batch 1, MJX and Brax at batch 1024 (n <= 4: MJX at n = 8 did not finish its first forward
-  call in 150 s), Pinocchio ABA (and its derivatives) per call,
+  call in 150 s), Pinocchio ABA (and its derivatives) and MuJoCo C's finite-difference step Jacobians
+  (``mjd_transitionFD``, what a finite-difference gradient through a rollout needs once per env-step) per call,
   each the minimum over 5 timed repeats (robust on a shared machine; lagrange's float64 forward and MuJoCo C at
   batch 1024, whose ratio is the headline, over 4 more rounds that alternate between the two); lagrange's first calls in CPU seconds (the
   cost of compiling on a busy machine); the largest difference between lagrange's and MuJoCo's trajectories, how far
@@ -154,6 +155,24 @@ class MujocoC:
             return state
 
         return run
+
+
+def mujoco_fd_time(mj, n, repeats=5, best=True):
+    """Seconds per call of MuJoCo C's ``mjd_transitionFD`` (one-sided differences, its default ``eps`` of 1e-6) at one
+    random state: the step Jacobians d(x_next)/d(x, u) a finite-difference gradient through a rollout needs once per
+    env-step (timed from Python on one state, as Pinocchio's)."""
+    mujoco = mj.mujoco
+    d = mujoco.MjData(mj.model)
+    rng = np.random.default_rng(0)
+    d.qpos[:], d.qvel[:], d.ctrl[:] = rng.uniform(-1, 1, n), rng.uniform(-1, 1, n), rng.uniform(-1, 1, mj.model.nu)
+    A, B = np.zeros((2 * n, 2 * n)), np.zeros((2 * n, mj.model.nu))
+    calls = max(1, 2000 // (2 * n + mj.model.nu))
+
+    def fd():
+        for _ in range(calls):
+            mujoco.mjd_transitionFD(mj.model, d, 1e-6, False, A, B, None, None)
+
+    return median_time(fd, repeats=repeats, min_time=0.0, best=best) / calls
 
 
 def pinocchio_chain(chain):
@@ -386,6 +405,7 @@ def scaling_rows(ns, jax_engines_max_n=4):
         row["lagrange_us_per_env_step"] = min(row["lagrange_us_per_env_step"], t / (1024 * SCALING_T) * 1e6)
         row["mujoco_c_us_per_env_step"] = tm / (1024 * SCALING_T) * 1e6
         row |= _trajectory_error(ch, mj, a)
+        row["mujoco_c_fd_jacobians_us_per_call"] = mujoco_fd_time(mj, n) * 1e6
         mj1 = MujocoC(ch, "Euler", nthread=1)
         a1 = _inputs(n, n, 1, T=SCALING_T)
         tm1 = median_time(mj1.make(*(np.asarray(x) for x in a1)), repeats=5, min_time=0.05, best=True)
@@ -426,6 +446,8 @@ def scaling_fit(rows, n_min=8):
             fit[f"exponent_{key}_n>={n_min}"] = float(np.polyfit(*np.log(np.array(pts)).T, 1)[0])
     for r in rows:
         r["forward_speedup_over_mujoco_c"] = r["mujoco_c_us_per_env_step"] / r["lagrange_us_per_env_step"]
+        r["gradient_speedup_over_mujoco_c_fd"] = r["mujoco_c_fd_jacobians_us_per_call"] / r[
+            "lagrange_gradient_us_per_env_step"]
         if "pinocchio_aba_derivatives_us_per_call" in r:
             r["gradient_speedup_over_pinocchio_aba_derivatives"] = (
                 r["pinocchio_aba_derivatives_us_per_call"] / r["lagrange_gradient_us_per_env_step"])
@@ -433,6 +455,7 @@ def scaling_fit(rows, n_min=8):
     if goal:
         fit["min_forward_speedup_over_mujoco_c_n4..32 (target >= 5)"] = min(r["forward_speedup_over_mujoco_c"]
                                                                              for r in goal)
+        fit["min_gradient_speedup_over_mujoco_c_fd_n4..32"] = min(r["gradient_speedup_over_mujoco_c_fd"] for r in goal)
         if "gradient_speedup_over_pinocchio_aba_derivatives" in goal[0]:
             fit["min_gradient_speedup_over_pinocchio_aba_derivatives_n4..32 (target >= 3)"] = min(
                 r["gradient_speedup_over_pinocchio_aba_derivatives"] for r in goal)
@@ -479,6 +502,8 @@ SCALING_COLUMNS = (
     ("pinocchio_aba_us_per_call", "Pinocchio ABA", "{:.3g}"),
     ("pinocchio_aba_derivatives_us_per_call", "Pinocchio ABA derivatives", "{:.3g}"),
     ("gradient_speedup_over_pinocchio_aba_derivatives", "gradient ÷ ABA derivatives", "{:.1f}×"),
+    ("mujoco_c_fd_jacobians_us_per_call", "MuJoCo C finite-difference Jacobians", "{:.3g}"),
+    ("gradient_speedup_over_mujoco_c_fd", "gradient ÷ MuJoCo C finite differences", "{:.1f}×"),
     ("mjx_us_per_env_step", "MJX forward", "{:.3g}"),
     ("mjx_gradient_us_per_env_step", "MJX gradient", "{:.3g}"),
     ("brax_us_per_env_step", "Brax forward", "{:.3g}"),
@@ -537,6 +562,7 @@ def _plot_scaling(rows, path):
         ("lagrange_us_per_env_step", "o-", "lagrange forward, batch 1024, per env-step"),
         ("lagrange_gradient_us_per_env_step", "o--", "lagrange gradient, batch 1024, per env-step"),
         ("mujoco_c_us_per_env_step", "^-", "MuJoCo C, 2 threads, batch 1024, per env-step"),
+        ("mujoco_c_fd_jacobians_us_per_call", "^--", "MuJoCo C finite-difference Jacobians, per call (Python)"),
         ("mjx_us_per_env_step", "v-", "MJX forward, batch 1024, per env-step"),
         ("mjx_gradient_us_per_env_step", "v--", "MJX gradient, batch 1024, per env-step"),
         ("brax_us_per_env_step", "d-", "Brax forward, batch 1024, per env-step"),
