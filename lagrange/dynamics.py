@@ -107,12 +107,12 @@ Measured on n-link pendulums (every joint actuated), semi-implicit Euler rollout
 float64, one process on a 2-core machine, microseconds per env-step, unrolled / recursive
 (``jax.vmap`` over the batch):
 
-- n = 2: batch 1 forward 0.40 / 1.8, gradient 0.48 / 7.7; batch 1024 forward 0.034 / 0.070, gradient 0.15 / 0.29.
-- n = 3: batch 1 forward 0.43 / 2.1, gradient 1.3 / 9.8; batch 1024 forward 0.11 / 0.09, gradient 0.72 / 0.43.
-- n = 4: batch 1 forward 1.4 / 4.8, gradient 6.2 / 19; batch 1024 forward 0.91 / 0.11, gradient 2.2 / 0.70.
+- n = 2: batch 1 forward 0.39 / 1.2, gradient 0.46 / 6.8; batch 1024 forward 0.035 / 0.058, gradient 0.16 / 0.27.
+- n = 3: batch 1 forward 0.42 / 1.3, gradient 1.3 / 8.8; batch 1024 forward 0.13 / 0.08, gradient 0.68 / 0.41.
+- n = 4: batch 1 forward 1.3 / 3.9, gradient 4.0 / 17; batch 1024 forward 0.96 / 0.10, gradient 2.1 / 0.51.
 
 Each link costs the recursive path three loop iterations per evaluation (kinematics, ABA's two passes), ~0.1-0.5 us
-each at batch 1, while at batch 1024 its vectorised per-link steps win from n = 3 and by 8x at n = 4. The unrolled
+each at batch 1, while at batch 1024 its vectorised per-link steps win from n = 3 and by 9x at n = 4. The unrolled
 path is kept where it is as fast or faster at both sizes (n <= 3, where it reaches the hand-written closed forms,
 ``benchmarks/derivation_overhead.py``); the recursive path from n = 4, where batched simulation, the case of the
 library's training loops, gains most. Hence 4 (a vmapped function is traced once per example, so the choice cannot
