@@ -7,6 +7,10 @@ several times per step. Here the reduction ``x = k pi/2 + y`` (Cody-Waite, pi/2 
 ``__kernel_cos`` on ``|y| <= pi/4`` are plain multiplies and adds that XLA vectorises: both values for ~2.3 ns an
 element. Measured against NumPy: absolute errors <= 2.3e-16 for ``|x| <= 1e5`` rad, 1.3e-15 at 1e6 and 1.3e-13 at 1e8
 (where the angle itself is only known to its spacing, 1.5e-8); ``tests/lagrange/test_sincos.py`` holds the first.
+From ~7e15 rad (float64; errors up to 9e-6 below it) or ~1e7 rad (float32; 9e-5), where an angle's spacing
+reaches one radian and the reduction no longer brings it within pi/2, both values are NaN: the state has blown up,
+and ``simulate`` reports it, where the polynomials would return unbounded values (XLA's ``sin`` reduces any
+argument, but its values there mean as little as the angle).
 
 XLA's float32 ``sin`` and ``cos`` are no cheaper: ~16 ns an element for both. float32 angles take the same route with
 pi/2 in three float32 parts (the first with 8 significant bits, so ``k pi/2`` is exact for ``|x| < 1e5``) and Cephes'
@@ -79,7 +83,9 @@ def _quadrants(k, y, S, C):
     swap = (quadrant == 1.0) | (quadrant == 3.0)
     sin = jnp.where(swap, c, s) * jnp.where(quadrant >= 2.0, -1.0, 1.0)
     cos = jnp.where(swap, s, c) * jnp.where((quadrant == 1.0) | (quadrant == 2.0), -1.0, 1.0)
-    return sin, cos
+    # past the reduction's range y is not reduced and the polynomials are unbounded: NaN, not a silent wrong value
+    lost = jnp.abs(y) > 1.5707963267948966
+    return jnp.where(lost, jnp.nan, sin), jnp.where(lost, jnp.nan, cos)
 
 
 @jax.custom_jvp

@@ -40,3 +40,16 @@ def test_sincos_derivatives_and_float32():
     assert s32.dtype == jnp.float32
     np.testing.assert_allclose(np.asarray(s32), np.sin(np.linspace(-3, 3, 7)), atol=1e-6)
     assert np.all(np.isnan(np.asarray(sincos(jnp.asarray([np.inf, np.nan]))[0])))
+
+
+@pytest.mark.parametrize("dtype, kept, top", [(jnp.float64, 1e14, 300), (jnp.float32, 1e6, 38)])
+def test_sincos_is_bounded_or_nan_at_any_angle(dtype, kept, top):
+    """Past the range reduction's reach (angles whose float spacing nears a radian) the values are NaN, never the
+    polynomials' unbounded values (1e46 at 1e20 rad before); up to ``kept`` none is NaN."""
+    x = np.logspace(0, top, 100_001).astype(dtype)
+    x = np.concatenate([x, -x])
+    s, c = jax.jit(sincos)(jnp.asarray(x))
+    v = np.concatenate([np.asarray(s, np.float64), np.asarray(c, np.float64)])
+    assert np.all(np.isnan(v) | (np.abs(v) <= 1.0))
+    assert not np.any(np.isnan(v[np.tile(np.abs(x) <= kept, 2)]))
+    assert np.all(np.isnan(np.asarray(sincos(jnp.asarray([np.inf, -np.inf], dtype))[1])))
