@@ -385,7 +385,7 @@ def scaling_rows(ns, jax_engines_max_n=4):
     rows = []
     for n in ns:
         ch = lg.systems.n_link_pendulum(n, gear=1.0)
-        row, forward = dict(n=n), {}
+        row, forward, inputs = dict(n=n), {}, {}
         for tag, B, dtype in (("", 1024, jnp.float64), ("_f32", 1024, jnp.float32), ("_batch1", 1, jnp.float64)):
             chain = jax.tree.map(lambda x: x.astype(dtype) if isinstance(x, jax.Array) else x, ch)
             fwd, grad = lagrange_engine(chain, lg.SemiImplicitEuler())
@@ -396,8 +396,8 @@ def scaling_rows(ns, jax_engines_max_n=4):
                     f"lagrange{tag}_gradient_us_per_env_step": tg / (B * SCALING_T) * 1e6}
             if not tag:
                 row |= dict(lagrange_first_call_cpu_s=first_cpu, lagrange_gradient_first_call_cpu_s=gfirst_cpu)
-            forward[tag] = lambda fwd=fwd, a=a: fwd(*a)  # noqa: E731
-        a = _inputs(n, n, 1024, T=SCALING_T)
+            forward[tag], inputs[tag] = (lambda fwd=fwd, a=a: fwd(*a)), a  # noqa: E731
+        a = inputs[""]
         mj = MujocoC(ch, "Euler")
         # the ratios to MuJoCo C: both sides timed again in alternating rounds, so that a busy spell on the shared
         # machine slows both rather than one
@@ -407,8 +407,7 @@ def scaling_rows(ns, jax_engines_max_n=4):
         row |= _trajectory_error(ch, mj, a)
         row["mujoco_c_fd_jacobians_us_per_call"] = mujoco_fd_time(mj, n) * 1e6
         mj1 = MujocoC(ch, "Euler", nthread=1)
-        a1 = _inputs(n, n, 1, T=SCALING_T)
-        t1, tm1 = _alternating(forward["_batch1"], mj1.make(*(np.asarray(x) for x in a1)))
+        t1, tm1 = _alternating(forward["_batch1"], mj1.make(*(np.asarray(x) for x in inputs["_batch1"])))
         row["lagrange_batch1_us_per_env_step"] = min(row["lagrange_batch1_us_per_env_step"], t1 / SCALING_T * 1e6)
         row["mujoco_c_batch1_us_per_env_step"] = tm1 / SCALING_T * 1e6
         if n <= jax_engines_max_n:
