@@ -1,8 +1,8 @@
 """lagrange: exact, fast, differentiable dynamics of planar kinematic chains in pure JAX."""
 
 from lagrange.chain import Chain, Link
+from lagrange.actuation import actuation_matrix, clamp_controls
 from lagrange.dynamics import (
-    actuation_matrix,
     bias_forces,
     energy,
     forward_dynamics,
@@ -30,6 +30,7 @@ __all__ = [
     "Chain",
     "Link",
     "actuation_matrix",
+    "clamp_controls",
     "bias_forces",
     "com_positions",
     "energy",

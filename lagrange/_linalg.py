@@ -1,4 +1,4 @@
-"""Small symmetric positive-definite solves, unrolled at trace time.
+"""Symmetric positive-definite solves: small ones unrolled at trace time, and a factor-once solver for arrays.
 
 For the few-link chains this module serves (those shorter than
 ``lagrange.dynamics.RECURSIVE_MIN``; longer ones reach ``qdd`` by ABA and need no solve), a LAPACK
@@ -8,6 +8,7 @@ factorisation written out over scalars fuses into the surrounding elementwise ke
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 
 from lagrange import _scalar as s
@@ -92,3 +93,22 @@ def to_array(M, like, symmetric: bool = False):
             row.append(s.as_array(x, like))
         rows.append(jnp.stack(row, axis=-1))
     return jnp.stack(rows, axis=-2)
+
+
+def spd_solver(A):
+    """``b -> A^-1 b`` for a (batch of) symmetric positive-definite array ``A`` of shape ``(*batch, n, n)``, factored
+    once by Cholesky (for solving with the same matrix several times, as :class:`lagrange.SymplecticEuler` does).
+
+    Args:
+        A: shape ``(*batch, n, n)``.
+
+    Returns:
+        A function of ``b`` (shape ``(*batch, n)``) returning ``A^-1 b`` (shape ``(*batch, n)``).
+    """
+    L = jnp.linalg.cholesky(A)
+
+    def solve(b):
+        y = jax.lax.linalg.triangular_solve(L, b[..., None], left_side=True, lower=True)
+        return jax.lax.linalg.triangular_solve(L, y, left_side=True, lower=True, transpose_a=True)[..., 0]
+
+    return solve

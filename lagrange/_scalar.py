@@ -9,6 +9,7 @@ this folding itself for floats (``0 * x`` is not ``0`` when ``x`` is ``inf`` or 
 
 from __future__ import annotations
 
+import math
 from typing import Union
 
 import jax.numpy as jnp
@@ -172,3 +173,9 @@ def as_array(x, like=None):
         return jnp.broadcast_to(x, jnp.broadcast_shapes(jnp.shape(x), jnp.shape(like)))
     return x
 
+
+def cos_sin(angle: float) -> tuple[float, float]:
+    """``(cos, sin)`` of a static angle, with values within 1e-15 of 0 snapped to 0 (so that an offset of pi or
+    pi/2 adds no round-off term)."""
+    c, sn = math.cos(angle), math.sin(angle)
+    return (0.0 if abs(c) < 1e-15 else c), (0.0 if abs(sn) < 1e-15 else sn)

@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 
 from lagrange import _scalar as s
+from lagrange._scalar import cos_sin
 from lagrange.chain import Chain
 
 BASE = -1
@@ -223,13 +224,6 @@ class Geometry:
     def z(self, x: dict, scale=1.0):
         """scale * (x . e_z)."""
         return s.total(s.mul(s.mul(scale, c), self.unit_z(k, a)) for (k, a), c in x.items())
-
-
-def cos_sin(angle: float) -> tuple[float, float]:
-    """``(cos, sin)`` of a static angle, with values within 1e-15 of 0 snapped to 0 (so that an offset of pi or
-    pi/2 adds no round-off term)."""
-    c, sn = math.cos(angle), math.sin(angle)
-    return (0.0 if abs(c) < 1e-15 else c), (0.0 if abs(sn) < 1e-15 else sn)
 
 
 def _rotated(c_d, c_e, off: float, a) -> list:

@@ -9,17 +9,16 @@ The kinetic energy of a planar chain is ``T = 1/2 sum_i (m_i |J_i qd|^2 + I_i (s
   mass, pulled back to the joints; the planar rotation terms have none),
 - ``T(q) = dV/dq = sum_i m_i g J_i^T e_z``.
 
-One derivation per chain size:
+This module checks the arguments and picks one of two derivations by the chain's size, here and nowhere else:
 
-- chains of fewer than ``RECURSIVE_MIN`` links: ``J_i`` and ``(dJ_i/dt) qd`` are differentiated at
-  trace time from the forward kinematics written as sums of unit vectors (:mod:`lagrange._unitvec`),
-  simplified at trace time, so the compiled program contains only the terms the chain has, and
-  ``M qdd = rhs`` is solved unrolled over scalars (:mod:`lagrange._linalg`);
+- chains of fewer than ``RECURSIVE_MIN`` links: :mod:`lagrange.unrolled`, where ``J_i`` and ``(dJ_i/dt) qd`` are
+  differentiated at trace time from the forward kinematics written as sums of unit vectors, simplified at trace time,
+  so the compiled program contains only the terms the chain has, and ``M qdd = rhs`` is solved unrolled over scalars;
 - chains of ``RECURSIVE_MIN`` or more links: the recursive algorithms of :mod:`lagrange.recursive`
   (ABA, RNEA, CRBA as scans over the links), whose work grows like n rather than n^3.
 
 The tests check both against the literal derivation (Hessians of the Lagrangian,
-``tests/oracles/euler_lagrange.py``) and hand-written closed forms.
+``benchmarks/oracles/euler_lagrange.py``) and hand-written closed forms.
 
 Shapes: ``n`` links, ``m`` actuated joints. Every function is pure, takes ``q``/``qd``/``u``/``qdd``
 with any leading batch dimensions ``*batch`` (broadcast against each other), and is safe under
@@ -33,14 +32,14 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, ArrayLike, Float
+from jaxtyping import Array, ArrayLike, Bool, Float
 
-from lagrange import _scalar as s
-from lagrange import _unitvec
-from lagrange import recursive
-from lagrange._linalg import solve_spd, to_array
+from lagrange import recursive, unrolled
+from lagrange.actuation import actuation_matrix
 from lagrange.chain import Chain
-from lagrange.kinematics import frames
+
+__all__ = ["RECURSIVE_MIN", "SINGULAR", "actuation_matrix", "bias_forces", "energy", "forward_dynamics",
+           "forward_dynamics_and_pivots", "gravity_forces", "inverse_dynamics", "mass_matrix"]
 
 
 def _as_constant(x):
@@ -64,33 +63,6 @@ def _check(chain: Chain, name: str, x, size: int):
     if len(shape) == 0 or shape[-1] != size:
         what = " (the chain has no actuated joint: pass u=None)" if name == "u" and size == 0 else ""
         raise ValueError(f"{name} must have shape (..., {size}) for this chain{what}, got {shape}")
-
-
-def _add_rotational(chain: Chain, M: list[list]) -> list[list]:
-    """Add ``sum_i I_i s_i^T s_i + diag(armature)`` (s_i: the revolute joints up to link i) to M."""
-    revolute: list[int] = []
-    for i, joint in enumerate(chain.joints):
-        if joint == "revolute":
-            revolute.append(i)
-        for a, j in enumerate(revolute):
-            for k in revolute[: a + 1]:
-                M[j][k] = s.add(M[j][k], chain.inertia[i])
-    for j in chain.armatured:
-        M[j][j] = s.add(M[j][j], chain.armature[j])
-    return M
-
-
-def _terms(chain: Chain, q, qd, *, mass: bool, velocity: bool, gravity: bool):
-    """(lower triangle of M or None, generalized velocity-product + gravity forces or None), by the relative-angle
-    formulation of :mod:`lagrange._unitvec` (chains shorter than ``RECURSIVE_MIN``)."""
-    absolute = _unitvec.plan(chain, mass=mass, velocity=velocity, gravity=gravity)
-    geom = _unitvec.Geometry(chain, q, qd if velocity else None, absolute)
-    M = _add_rotational(chain, _unitvec.mass_entries(chain, geom)) if mass else None
-    f = _unitvec.generalized_forces(chain, geom, velocity=velocity, gravity=gravity) if (velocity or gravity) else None
-    if f is not None and velocity and chain.damping is not None:
-        for j in chain.damped:
-            f[j] = s.add(f[j], s.mul(chain.damping[j], qd[..., j]))
-    return M, f
 
 
 RECURSIVE_MIN = 4
@@ -123,10 +95,6 @@ def _recursive(chain: Chain) -> bool:
     return chain.n >= RECURSIVE_MIN
 
 
-def _stack(xs, like):
-    return jnp.stack([s.as_array(x, like) for x in xs], axis=-1)
-
-
 SINGULAR = (
     "lagrange.forward_dynamics: the mass matrix is singular (a non-positive pivot in its factorisation) at this "
     "configuration: some motion of the joints moves no mass, inertia or armature here, e.g. a massless link "
@@ -149,8 +117,7 @@ def mass_matrix(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "
     chain = _folded(chain)
     if _recursive(chain):
         return recursive.mass_matrix(chain, q)
-    M, _ = _terms(chain, q, None, mass=True, velocity=False, gravity=False)
-    return to_array(M, q[..., 0], symmetric=True)
+    return unrolled.mass_matrix(chain, q)
 
 
 def bias_forces(
@@ -171,8 +138,7 @@ def bias_forces(
     chain = _folded(chain)
     if _recursive(chain):
         return recursive.bias_forces(chain, q, qd)
-    _, f = _terms(chain, q, qd, mass=False, velocity=True, gravity=True)
-    return _stack(f, q[..., 0])
+    return unrolled.bias_forces(chain, q, qd)
 
 
 def gravity_forces(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch n"]:
@@ -189,27 +155,7 @@ def gravity_forces(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array
     chain = _folded(chain)
     if _recursive(chain):
         return recursive.gravity_forces(chain, q)
-    _, f = _terms(chain, q, None, mass=False, velocity=False, gravity=True)
-    return _stack(f, q[..., 0])
-
-
-def actuation_matrix(chain: Chain) -> Float[Array, "n m"]:
-    """The actuation matrix ``B``, shape ``(n, m)``: ``B[actuated[k], k] = gear[k]``, zero elsewhere. A chain with
-    control ranges applies ``B`` to the clamped control (:func:`lagrange.recursive.clamp_controls`)."""
-    B = jnp.zeros((chain.n, chain.m), dtype=chain.mass.dtype)
-    for k, j in enumerate(chain.actuated):
-        B = B.at[j, k].set(chain.gear[k])
-    return B
-
-
-def _actuation(chain: Chain, u) -> list:
-    out = [0.0] * chain.n
-    _check(chain, "u", u, chain.m)
-    if chain.m:
-        u = recursive.clamp_controls(chain, u)
-        for k, j in enumerate(chain.actuated):
-            out[j] = s.mul(chain.gear[k], u[..., k])
-    return out
+    return unrolled.gravity_forces(chain, q)
 
 
 def forward_dynamics(
@@ -217,6 +163,9 @@ def forward_dynamics(
     q: Float[ArrayLike, "*batch n"],
     qd: Float[ArrayLike, "*batch n"],
     u: Float[ArrayLike, "*batch m"] | None = None,
+    *,
+    implicit_damping_dt: float | Float[ArrayLike, ""] | None = None,
+    check: bool = True,
 ) -> Float[Array, "*batch n"]:
     """Joint accelerations ``qdd = M^-1 (B u - C qd - T - D qd)``.
 
@@ -227,44 +176,54 @@ def forward_dynamics(
         u: controls, shape ``(*batch, m)`` (generalized force ``gear * u`` on each actuated joint, ``u``
             first clamped into the joint's ``control_range`` where it has one); ``None`` (no control) or
             omitted for an unactuated chain.
+        implicit_damping_dt: ``h`` [s] to solve with ``M + h diag(damping)`` instead of ``M``, the velocity
+            update of :class:`lagrange.SemiImplicitEuler` (damping treated implicitly); ``None`` for ``M``.
+        check: raise where ``M`` is singular at ``q``; ``False`` skips the check (a NaN or Inf then comes out
+            instead, as inside :func:`lagrange.simulate`, which checks the final state).
 
     Returns:
         ``qdd``, shape ``(*batch, n)`` [rad/s^2 or m/s^2].
 
     Raises:
-        equinox.EquinoxRuntimeError: (when run) if ``M`` is singular at ``q`` (a pivot of its
+        equinox.EquinoxRuntimeError: (when run, with ``check=True``) if ``M`` is singular at ``q`` (a pivot of its
             factorisation is not positive), with :data:`SINGULAR` as the message.
     """
-    qdd, singular = _forward(chain, q, qd, u, pivots=True)
+    if not check:
+        return _forward(chain, q, qd, u, implicit_damping_dt, pivots=False)
+    qdd, singular = forward_dynamics_and_pivots(chain, q, qd, u, implicit_damping_dt=implicit_damping_dt)
     return eqx.error_if(qdd, singular, SINGULAR)
 
 
-def _forward(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, pivots: bool = False):
-    """``forward_dynamics`` without its check; with ``implicit_damping_dt = h`` it solves with ``M + h diag(damping)``.
+def forward_dynamics_and_pivots(
+    chain: Chain,
+    q: Float[ArrayLike, "*batch n"],
+    qd: Float[ArrayLike, "*batch n"],
+    u: Float[ArrayLike, "*batch m"] | None = None,
+    *,
+    implicit_damping_dt: float | Float[ArrayLike, ""] | None = None,
+) -> tuple[Float[Array, "*batch n"], Bool[Array, " *batch"]]:
+    """:func:`forward_dynamics` without its check, and where it would raise.
 
-    With ``pivots=True`` it returns ``(qdd, singular)``, ``singular`` (shape ``*batch``) true where a pivot of the
-    factorisation of ``M`` (ABA's articulated inertias ``D_i``; the LDL^T pivots, or the determinant for n <= 3) is
-    not positive or not finite."""
+    Args:
+        chain, q, qd, u, implicit_damping_dt: as for :func:`forward_dynamics`.
+
+    Returns:
+        ``(qdd, singular)``: ``qdd`` of shape ``(*batch, n)`` and ``singular`` of shape ``(*batch,)``, true where a
+        pivot of the factorisation of ``M`` (ABA's articulated inertias ``D_i``; the LDL^T pivots, or the
+        determinant for n <= 3) is not positive or not finite.
+    """
+    return _forward(chain, q, qd, u, implicit_damping_dt, pivots=True)
+
+
+def _forward(chain: Chain, q, qd, u, implicit_damping_dt, *, pivots: bool):
     _check(chain, "q", q, chain.n)
     _check(chain, "qd", qd, chain.n)
+    if u is not None:
+        _check(chain, "u", u, chain.m)
     chain = _folded(chain)
     if _recursive(chain):
-        if u is not None:
-            _check(chain, "u", u, chain.m)
         return recursive.forward_dynamics(chain, q, qd, u, implicit_damping_dt=implicit_damping_dt, pivots=pivots)
-    M, bias = _terms(chain, q, qd, mass=True, velocity=True, gravity=True)
-    tau = _actuation(chain, u) if u is not None else [0.0] * chain.n
-    # an unactuated joint's -bias keeps its sign symbolic (folded into the solve, see _scalar.negated)
-    rhs = [s.negated(b) if s.is_zero(t) else s.sub(t, b) for t, b in zip(tau, bias)]
-    like = q[..., 0] if jnp.ndim(q) >= jnp.ndim(qd) else qd[..., 0]
-    if implicit_damping_dt is not None and chain.damping is not None:
-        for j in chain.damped:
-            M[j][j] = s.add(M[j][j], s.mul(implicit_damping_dt, chain.damping[j]))
-    if not pivots:
-        return _stack(solve_spd(M, rhs, like), like)
-    qdd, p = solve_spd(M, rhs, like, pivots=True)
-    p = jnp.stack(jnp.broadcast_arrays(*(s.as_array(x, like) for x in p)), axis=-1)
-    return _stack(qdd, like), jnp.any(~((p > 0) & jnp.isfinite(p)), axis=-1)
+    return unrolled.forward_dynamics(chain, q, qd, u, implicit_damping_dt, pivots=pivots)
 
 
 def inverse_dynamics(
@@ -295,23 +254,19 @@ def inverse_dynamics(
 def energy(
     chain: Chain, q: Float[ArrayLike, "*batch n"], qd: Float[ArrayLike, "*batch n"]
 ) -> tuple[Float[Array, " *batch"], Float[Array, " *batch"]]:
-    """``(kinetic, potential)`` energy [J], each of shape ``(*batch,)``; the potential is zero with the chain's
-    origin at z = 0."""
+    """The kinetic and potential energy.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`.
+        q: joint coordinates [rad or m], shape ``(*batch, n)``.
+        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
+
+    Returns:
+        ``(kinetic, potential)`` [J], each of shape ``(*batch,)``; the potential is zero with the chain's origin at
+        z = 0.
+    """
     _check(chain, "q", q, chain.n)
     _check(chain, "qd", qd, chain.n)
     if _recursive(chain):
         return recursive.energy(chain, q, qd)
-    f = frames(chain, q, qd)
-    like = q[..., 0]
-    kin = 0.0
-    pot = 0.0
-    for i, (cx, cz) in enumerate(f.com):
-        v2 = s.add(s.mul(cx.vd, cx.vd), s.mul(cz.vd, cz.vd))
-        kin = s.add(kin, s.mul(0.5 * chain.mass[i], v2))
-        w = f.angle_rate[i]
-        kin = s.add(kin, s.mul(0.5 * chain.inertia[i], s.mul(w, w)))
-        if chain.gravity is not None:
-            pot = s.add(pot, s.mul(chain.mass[i] * chain.gravity, cz.v))
-    for j in chain.armatured:
-        kin = s.add(kin, s.mul(0.5 * chain.armature[j], s.mul(qd[..., j], qd[..., j])))
-    return s.as_array(kin, like), s.as_array(pot, like)
+    return unrolled.energy(chain, q, qd)

@@ -27,7 +27,9 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from lagrange.chain import Chain
-from lagrange.dynamics import _forward, actuation_matrix, energy, gravity_forces, mass_matrix
+from lagrange._linalg import spd_solver
+from lagrange.actuation import actuation_matrix
+from lagrange.dynamics import energy, forward_dynamics, gravity_forces, mass_matrix
 from lagrange.solvers import RK4, SemiImplicitEuler, SymplecticEuler, check_solver, is_adaptive_capable
 
 
@@ -93,17 +95,6 @@ def _erk_step(f, tableau, h, y):
     return _axpy(y, h, tableau.b_sol, ks)
 
 
-def _spd_solver(A):
-    """``b -> A^-1 b`` for a (batch of) symmetric positive-definite ``A``, factored once."""
-    L = jnp.linalg.cholesky(A)
-
-    def solve(b):
-        y = jax.lax.linalg.triangular_solve(L, b[..., None], left_side=True, lower=True)
-        return jax.lax.linalg.triangular_solve(L, y, left_side=True, lower=True, transpose_a=True)[..., 0]
-
-    return solve
-
-
 def _symplectic_euler_step(chain: Chain, iterations: int, h, q, qd, u):
     """One step of :class:`lagrange.SymplecticEuler` (see its docstring for the scheme)."""
     M = mass_matrix(chain, q)
@@ -112,7 +103,7 @@ def _symplectic_euler_step(chain: Chain, iterations: int, h, q, qd, u):
     if u is not None and chain.m:
         force = force + jnp.einsum("ij,...j->...i", actuation_matrix(chain), u)
     A = M if chain.damping is None else M + h * jnp.diag(chain.damping)
-    solve = _spd_solver(A)
+    solve = spd_solver(A)
     # dT/dq at fixed v; the sum over a batch leaves each state's gradient its own
     dkin_dq = jax.grad(lambda q_, v: jnp.sum(energy(chain, q_, v)[0]))
     v = qd
@@ -120,19 +111,19 @@ def _symplectic_euler_step(chain: Chain, iterations: int, h, q, qd, u):
         v = solve(p + h * (force + dkin_dq(q, v)))
     q1 = q + h * v
     p1 = jnp.einsum("...ij,...j->...i", M, v)
-    return q1, _spd_solver(mass_matrix(chain, q1))(p1)
+    return q1, spd_solver(mass_matrix(chain, q1))(p1)
 
 
 def _fixed_substep(chain: Chain, solver, h, q, qd, u):
     if isinstance(solver, SymplecticEuler):
         return _symplectic_euler_step(chain, solver.iterations, h, q, qd, u)
     if isinstance(solver, SemiImplicitEuler):
-        qdd = _forward(chain, q, qd, u, implicit_damping_dt=h)
+        qdd = forward_dynamics(chain, q, qd, u, implicit_damping_dt=h, check=False)
         qd1 = qd + h * qdd
         return q + h * qd1, qd1
 
     def f(y):
-        return (y[1], _forward(chain, y[0], y[1], u))
+        return (y[1], forward_dynamics(chain, y[0], y[1], u, check=False))
 
     if isinstance(solver, diffrax.Euler):
         qdd = f((q, qd))[1]
@@ -170,7 +161,7 @@ def _interval(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps):
 
         return interval
 
-    term = diffrax.ODETerm(lambda t, y, u: (y[1], _forward(chain, y[0], y[1], u)))
+    term = diffrax.ODETerm(lambda t, y, u: (y[1], forward_dynamics(chain, y[0], y[1], u, check=False)))
     controller = (
         diffrax.PIDController(rtol=rtol, atol=atol) if adaptive else diffrax.ConstantStepSize()
     )

@@ -16,7 +16,7 @@ from jaxtyping import Array, ArrayLike, Float
 
 from lagrange import _scalar as s
 from lagrange._jet import Jet, sincos
-from lagrange._unitvec import cos_sin
+from lagrange._scalar import cos_sin
 from lagrange.chain import Chain
 
 

@@ -1,0 +1,26 @@
+"""Kinetic and potential energy from the links' spatial velocities and inertias."""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from lagrange.chain import Chain
+from lagrange.recursive.kinematics import LinkKinematics
+from lagrange.recursive.tree import cumsum, param, prepare
+
+
+def energy(chain: Chain, q, qd):
+    """``(kinetic, potential)`` energy [J], potential zero at the chain's origin."""
+    batch, _, q, qd = prepare(chain, q, qd)
+    k = LinkKinematics(chain, q, qd, len(batch))
+    # kinetic energy of body i = 1/2 v^T I v with the momentum from the spatial inertia
+    t, Fx, Fz = k.momentum(k.w, k.vx, k.vz)
+    kin = 0.5 * jnp.sum(k.w * t + k.vx * Fx + k.vz * Fz, axis=0)
+    if chain.armature is not None:
+        kin = kin + 0.5 * jnp.sum(param(chain.armature, len(batch)) * qd * qd, axis=0)
+    if chain.gravity is None:
+        pot = jnp.zeros_like(kin)
+    else:
+        pz = cumsum(k.rz)  # height of p_i; the centre of mass is h / m above it
+        pot = chain.gravity * jnp.sum(jnp.broadcast_to(k.m * pz + k.hz, q.shape), axis=0)
+    return kin, pot

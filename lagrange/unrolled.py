@@ -1,0 +1,119 @@
+"""The unrolled derivation behind :mod:`lagrange.dynamics` for chains shorter than ``RECURSIVE_MIN`` links.
+
+Call :mod:`lagrange.dynamics`: it checks the arguments and picks this derivation or the recursive algorithms
+(:mod:`lagrange.recursive`) by the chain's size. Here ``J_i`` and ``(dJ_i/dt) qd`` are differentiated at trace time
+from the forward kinematics written as sums of unit vectors (:mod:`lagrange._unitvec`), simplified at trace time, so
+the compiled program contains only the terms the chain has, and ``M qdd = rhs`` is solved unrolled over scalars
+(:func:`lagrange._linalg.solve_spd`). For the acrobot this is the closed form a person writes by hand.
+
+Every function takes a chain whose concrete parameters are NumPy arrays (``lagrange.dynamics`` folds them) and
+``q``/``qd``/``u`` of shape ``(*batch, n)`` (``(*batch, m)``), and returns what the function of the same name in
+:mod:`lagrange.dynamics` returns.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from lagrange import _scalar as s
+from lagrange import _unitvec
+from lagrange._linalg import solve_spd, to_array
+from lagrange.actuation import clamp_controls
+from lagrange.chain import Chain
+from lagrange.kinematics import frames
+
+
+def _add_rotational(chain: Chain, M: list[list]) -> list[list]:
+    """Add ``sum_i I_i s_i^T s_i + diag(armature)`` (s_i: the revolute joints up to link i) to M."""
+    revolute: list[int] = []
+    for i, joint in enumerate(chain.joints):
+        if joint == "revolute":
+            revolute.append(i)
+        for a, j in enumerate(revolute):
+            for k in revolute[: a + 1]:
+                M[j][k] = s.add(M[j][k], chain.inertia[i])
+    for j in chain.armatured:
+        M[j][j] = s.add(M[j][j], chain.armature[j])
+    return M
+
+
+def _terms(chain: Chain, q, qd, *, mass: bool, velocity: bool, gravity: bool):
+    """(lower triangle of M or None, generalized velocity-product + gravity forces or None), by the relative-angle
+    formulation of :mod:`lagrange._unitvec`."""
+    absolute = _unitvec.plan(chain, mass=mass, velocity=velocity, gravity=gravity)
+    geom = _unitvec.Geometry(chain, q, qd if velocity else None, absolute)
+    M = _add_rotational(chain, _unitvec.mass_entries(chain, geom)) if mass else None
+    f = _unitvec.generalized_forces(chain, geom, velocity=velocity, gravity=gravity) if (velocity or gravity) else None
+    if f is not None and velocity and chain.damping is not None:
+        for j in chain.damped:
+            f[j] = s.add(f[j], s.mul(chain.damping[j], qd[..., j]))
+    return M, f
+
+
+def _stack(xs, like):
+    return jnp.stack([s.as_array(x, like) for x in xs], axis=-1)
+
+
+def mass_matrix(chain: Chain, q):
+    """``M(q)``, shape ``(*batch, n, n)``."""
+    M, _ = _terms(chain, q, None, mass=True, velocity=False, gravity=False)
+    return to_array(M, q[..., 0], symmetric=True)
+
+
+def bias_forces(chain: Chain, q, qd):
+    """``C(q, qd) qd + T(q) + D qd``, shape ``(*batch, n)``."""
+    _, f = _terms(chain, q, qd, mass=False, velocity=True, gravity=True)
+    return _stack(f, q[..., 0])
+
+
+def gravity_forces(chain: Chain, q):
+    """``T(q)``, shape ``(*batch, n)``."""
+    _, f = _terms(chain, q, None, mass=False, velocity=False, gravity=True)
+    return _stack(f, q[..., 0])
+
+
+def _actuation(chain: Chain, u) -> list:
+    """``B u`` as a list of scalars (a constant 0 on every unactuated joint)."""
+    out = [0.0] * chain.n
+    if chain.m:
+        u = clamp_controls(chain, u)
+        for k, j in enumerate(chain.actuated):
+            out[j] = s.mul(chain.gear[k], u[..., k])
+    return out
+
+
+def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, pivots: bool = False):
+    """``qdd = M^-1 (B u - C qd - T - D qd)``, shape ``(*batch, n)``; with ``implicit_damping_dt = h`` solved with
+    ``M + h diag(damping)``. With ``pivots=True`` it returns ``(qdd, singular)``, ``singular`` (shape ``*batch``) true
+    where a pivot of the factorisation of ``M`` (the determinant for n <= 3) is not positive or not finite."""
+    M, bias = _terms(chain, q, qd, mass=True, velocity=True, gravity=True)
+    tau = _actuation(chain, u) if u is not None else [0.0] * chain.n
+    # an unactuated joint's -bias keeps its sign symbolic (folded into the solve, see _scalar.negated)
+    rhs = [s.negated(b) if s.is_zero(t) else s.sub(t, b) for t, b in zip(tau, bias)]
+    like = q[..., 0] if jnp.ndim(q) >= jnp.ndim(qd) else qd[..., 0]
+    if implicit_damping_dt is not None and chain.damping is not None:
+        for j in chain.damped:
+            M[j][j] = s.add(M[j][j], s.mul(implicit_damping_dt, chain.damping[j]))
+    if not pivots:
+        return _stack(solve_spd(M, rhs, like), like)
+    qdd, p = solve_spd(M, rhs, like, pivots=True)
+    p = jnp.stack(jnp.broadcast_arrays(*(s.as_array(x, like) for x in p)), axis=-1)
+    return _stack(qdd, like), jnp.any(~((p > 0) & jnp.isfinite(p)), axis=-1)
+
+
+def energy(chain: Chain, q, qd):
+    """``(kinetic, potential)`` [J], each of shape ``(*batch,)``, from the jets of :func:`lagrange.kinematics.frames`."""
+    f = frames(chain, q, qd)
+    like = q[..., 0]
+    kin = 0.0
+    pot = 0.0
+    for i, (cx, cz) in enumerate(f.com):
+        v2 = s.add(s.mul(cx.vd, cx.vd), s.mul(cz.vd, cz.vd))
+        kin = s.add(kin, s.mul(0.5 * chain.mass[i], v2))
+        w = f.angle_rate[i]
+        kin = s.add(kin, s.mul(0.5 * chain.inertia[i], s.mul(w, w)))
+        if chain.gravity is not None:
+            pot = s.add(pot, s.mul(chain.mass[i] * chain.gravity, cz.v))
+    for j in chain.armatured:
+        kin = s.add(kin, s.mul(0.5 * chain.armature[j], s.mul(qd[..., j], qd[..., j])))
+    return s.as_array(kin, like), s.as_array(pot, like)
