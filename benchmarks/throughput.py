@@ -12,7 +12,7 @@ The acrobot (``lagrange.systems.acrobot()``), float64 on the CPU, dt = 0.01, rol
   reverse mode (``jax.grad``); env-steps/s counts forward steps covered.
 - same integrator, same run: semi-implicit Euler (lagrange ``SemiImplicitEuler``, Brax
   generalized, MuJoCo C ``Euler``, MJX ``Euler``) and RK4 (lagrange ``RK4``, the hand-written closed
-  form ``tests/oracles/closed_form.py``, MuJoCo C ``RK4``).
+  form ``benchmarks/oracles/closed_form.py``, MuJoCo C ``RK4``).
 - MuJoCo C runs ``mujoco.rollout`` with 2 threads; Pinocchio's ABA (and its derivatives) is timed
   per call from Python on a single state (it has no batch API), so its numbers are per
   dynamics evaluation, not per env-step of an integrator.
@@ -87,7 +87,7 @@ def lagrange_engine(chain, solver):
 
 
 def closed_form_engine():
-    from tests.oracles import closed_form as cf
+    from benchmarks.oracles import closed_form as cf
 
     params = cf.acrobot.Params()
 

@@ -1,4 +1,4 @@
-"""Helpers shared by several test modules (the oracles they compare against live in ``tests/oracles/``).
+"""Helpers shared by several test modules (the oracles they compare against live in ``benchmarks/oracles/``).
 
 - ``assert_close``, ``states``, ``per_state`` and ``random_chain``: random chains and states for the checks of the
   equations of motion (``tests/lagrange/test_dynamics.py``, ``test_recursive.py``, ``test_systems.py``).

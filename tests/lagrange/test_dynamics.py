@@ -1,8 +1,8 @@
 """The equations of motion against independent references.
 
-References: the hand-written closed forms of ``tests/oracles/closed_form.py`` (pendulum, cartpole,
+References: the hand-written closed forms of ``benchmarks/oracles/closed_form.py`` (pendulum, cartpole,
 acrobot, double cartpole), the literal Euler-Lagrange derivation of
-``tests/oracles/euler_lagrange.py`` (dense Hessians of L = T - V, ``jnp.linalg.solve``) for random
+``benchmarks/oracles/euler_lagrange.py`` (dense Hessians of L = T - V, ``jnp.linalg.solve``) for random
 chains, the Christoffel symbols of ``M`` (so ``C qd`` is tied to ``M``), and central finite
 differences (``jax.test_util.check_grads``).
 
@@ -26,8 +26,8 @@ from jax.test_util import check_grads
 import lagrange as lg
 from lagrange.chain import Chain, Link
 from tests.helpers import REL, assert_close, per_state, random_chain, states
-from tests.oracles import closed_form as cf
-from tests.oracles import euler_lagrange as el
+from benchmarks.oracles import closed_form as cf
+from benchmarks.oracles import euler_lagrange as el
 
 
 # ------------------------------------------------------------------ closed forms

@@ -1,6 +1,6 @@
 """The recursive algorithms (:mod:`lagrange.recursive`: ABA, RNEA, CRBA) against the unrolled
 derivation of :mod:`lagrange.dynamics` (chains shorter than ``RECURSIVE_MIN``), the literal
-Euler-Lagrange oracle (``tests/oracles/euler_lagrange.py``), finite differences and energy
+Euler-Lagrange oracle (``benchmarks/oracles/euler_lagrange.py``), finite differences and energy
 conservation, and the dispatch on ``lagrange.dynamics.RECURSIVE_MIN``.
 
 Tolerances as in ``tests/lagrange/test_dynamics.py``: M, bias and gravity forces to 1e-12 relative to the
@@ -19,9 +19,10 @@ import pytest
 
 import lagrange as lg
 from lagrange import dynamics, recursive
+from lagrange.recursive.kinematics import LinkKinematics
 from tests.helpers import assert_close  # REL = 1e-12, as the docstring says
 from tests.helpers import random_chain as _random_chain
-from tests.oracles import euler_lagrange as el
+from benchmarks.oracles import euler_lagrange as el
 
 
 def random_chain(rng, n, cart=False):
@@ -44,7 +45,7 @@ def _quantities(module, chain, q, qd, u, h=0.05):
     if module is recursive:
         fd = lambda h: recursive.forward_dynamics(chain, q, qd, u, implicit_damping_dt=h)  # noqa: E731
     else:
-        fd = lambda h: dynamics._forward(chain, q, qd, u, implicit_damping_dt=h)  # noqa: E731
+        fd = lambda h: dynamics.forward_dynamics(chain, q, qd, u, implicit_damping_dt=h, check=False)  # noqa: E731
     return (module.mass_matrix(chain, q), module.bias_forces(chain, q, qd), module.gravity_forces(chain, q),
             fd(None), fd(h))
 
@@ -229,7 +230,7 @@ def test_link_angles_sines_by_angle_addition_stay_exact(n):
     the error stays under 20 float64 ulps at 1 (measured 1.3e-15 at n = 32, 1.9e-15 at n = 64)."""
     chain = dynamics._folded(lg.systems.n_link_pendulum(n))
     q = np.random.default_rng(0).uniform(-3, 3, (n, 4096))
-    k = recursive._Kin(chain, jnp.asarray(q), None, 1)
+    k = LinkKinematics(chain, jnp.asarray(q), None, 1)
     phi = np.cumsum(q.astype(np.longdouble), axis=0)
     tol = 20 * np.finfo(np.float64).eps
     assert float(np.max(np.abs(np.asarray(k.sin) - np.sin(phi)))) <= tol

@@ -1,7 +1,7 @@
 """The catalogue (lagrange/systems.py): every system's defaults against the CE-APG paper's constants and the
 structure the module's table documents (coordinates, actuated joints, gears, thin-rod inertias), ``BRAX_V1`` against
 the authors' Brax v1 configs, and the centre-of-mass and inertia keywords (and the Brax v1 bodies built from them)
-against the hand-written closed forms of ``tests/oracles/closed_form.py``."""
+against the hand-written closed forms of ``benchmarks/oracles/closed_form.py``."""
 
 import jax
 import jax.numpy as jnp
@@ -10,7 +10,7 @@ import pytest
 
 import lagrange as lg
 from tests.helpers import assert_close, per_state, states
-from tests.oracles import closed_form as cf
+from benchmarks.oracles import closed_form as cf
 
 
 def _com_inertia_cases(rng):
