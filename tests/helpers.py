@@ -2,7 +2,7 @@
 
 - ``assert_close``, ``states``, ``per_state`` and ``random_chain``: random chains and states for the checks of the
   equations of motion (``tests/lagrange/test_dynamics.py``, ``test_recursive.py``, ``test_systems.py``).
-- ``seeded_chain``, ``mujoco_model``, ``mujoco_rollout``, ``random_problem``, ``rel``, ``SYSTEMS`` and ``CHAINS``:
+- ``seeded_chain``, ``mujoco_model``, ``mujoco_batch_rollout``, ``random_problem``, ``rel``, ``SYSTEMS`` and ``CHAINS``:
   the chains exported to MuJoCo C and Brax and their rollouts (``tests/lagrange/test_against_mujoco.py``,
   ``test_against_brax.py`` and ``tests/lagrange/interop/test_mjcf.py``). Errors there are
 
@@ -164,8 +164,10 @@ def mujoco_model(chain: Chain, dt: float, integrator: str = "Euler"):
     return model, mujoco.MjData(model)
 
 
-def mujoco_rollout(model, data, q0, qd0, controls):
-    """MuJoCo C ``mj_step`` rollouts (batched over leading dims of q0/qd0/controls).
+def mujoco_batch_rollout(model, data, q0, qd0, controls):
+    """MuJoCo C ``mj_step`` rollouts of a batch, through ``mujoco.rollout`` (batched over leading dims of
+    q0/qd0/controls), for the many rollouts of the trajectory and finite-difference checks; the library's
+    :func:`lagrange.interop.mjcf.mujoco_rollout` steps one rollout from Python and reports constraints.
 
     q0, qd0: (B, n); controls: (B, T, m). Returns q, qd of shape (B, T, n) after each step.
     """

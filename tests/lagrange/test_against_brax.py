@@ -44,7 +44,7 @@ from tests.helpers import (
     TRAJECTORY,
     has_slide_below_hinge,
     mujoco_model,
-    mujoco_rollout,
+    mujoco_batch_rollout,
     seeded_chain,
     random_problem,
     rel,
@@ -124,7 +124,7 @@ def mujoco_finite_differences(chain: Chain, dt: float, q0, qd0, us, h=FD_STEP):
     k = np.arange(cols)
     X[2 * k, k] += h
     X[2 * k + 1, k] -= h
-    q, qd = mujoco_rollout(model, data, X[:, :n], X[:, n : 2 * n], X[:, 2 * n :].reshape(-1, T, m))
+    q, qd = mujoco_batch_rollout(model, data, X[:, :n], X[:, n : 2 * n], X[:, 2 * n :].reshape(-1, T, m))
     L = np.sum(q**2, axis=(1, 2)) + 0.01 * np.sum(qd**2, axis=(1, 2))
     out = np.concatenate([q[:, -1], qd[:, -1], L[:, None]], axis=1)
     return (out[0::2] - out[1::2]).T / (2 * h)
@@ -162,7 +162,7 @@ def test_trajectory_and_gradients_match_brax_and_mujoco(chain, dt):
     J, (q, qd) = derivatives(our_trajectory(chain, dt))(q0, qd0, us)
     J_brax, (q_brax, qd_brax) = derivatives(brax_trajectory(brax_system(chain, dt)))(q0, qd0, us)
     model, data = mujoco_model(chain, dt)
-    q_mj, qd_mj = mujoco_rollout(model, data, q0, qd0, us)
+    q_mj, qd_mj = mujoco_batch_rollout(model, data, q0, qd0, us)
 
     assert rel(q[1:], q_mj[0]) <= TRAJECTORY and rel(qd[1:], qd_mj[0]) <= TRAJECTORY
     assert rel(q_brax[1:], q_mj[0]) <= TRAJECTORY and rel(qd_brax[1:], qd_mj[0]) <= TRAJECTORY
@@ -184,7 +184,7 @@ def test_trajectory_matches_brax(chain, dt):
     q_brax, qd_brax = map(np.asarray, run(jnp.asarray(q0), jnp.asarray(qd0), jnp.asarray(us)))
     q, qd = map(np.asarray, jax.jit(our_trajectory(chain, dt))(jnp.asarray(q0), jnp.asarray(qd0), jnp.asarray(us)))
     model, data = mujoco_model(chain, dt)
-    q_mj, qd_mj = mujoco_rollout(model, data, q0, qd0, us)
+    q_mj, qd_mj = mujoco_batch_rollout(model, data, q0, qd0, us)
     assert rel(q, q_brax) <= TRAJECTORY and rel(qd, qd_brax) <= TRAJECTORY
     assert rel(q_brax[1:], q_mj[0]) <= TRAJECTORY and rel(qd_brax[1:], qd_mj[0]) <= TRAJECTORY
 
@@ -197,7 +197,7 @@ def test_gradients_match_mujoco_with_slide_joint_below_hinge(seed):
     q0, qd0, us = random_problem(chain, 3, STEPS)
     J, (q, qd) = derivatives(our_trajectory(chain, dt))(q0, qd0, us)
     model, data = mujoco_model(chain, dt)
-    q_mj, qd_mj = mujoco_rollout(model, data, q0, qd0, us)
+    q_mj, qd_mj = mujoco_batch_rollout(model, data, q0, qd0, us)
     assert rel(q[1:], q_mj[0]) <= TRAJECTORY and rel(qd[1:], qd_mj[0]) <= TRAJECTORY
     J_fd = mujoco_finite_differences(chain, dt, q0, qd0, us)
     assert np.max(np.abs(J[:-1])) > 0.5
@@ -219,7 +219,7 @@ def test_brax_bug_slide_joint_below_hinge():
     q0, qd0 = np.array([0.3, 0.1]), np.zeros(2)
     us = np.zeros((steps, 1))
     model, data = mujoco_model(chain, dt)
-    q_mj, _ = mujoco_rollout(model, data, q0, qd0, us)
+    q_mj, _ = mujoco_batch_rollout(model, data, q0, qd0, us)
     q, _ = jax.jit(our_trajectory(chain, dt))(jnp.asarray(q0), jnp.asarray(qd0), jnp.asarray(us))
     q_brax, _ = jax.jit(brax_trajectory(brax_system(chain, dt)))(jnp.asarray(q0), jnp.asarray(qd0), jnp.asarray(us))
     assert rel(q[1:], q_mj[0]) <= TRAJECTORY
@@ -272,7 +272,7 @@ def test_chaotic_upright_acrobot():
         k = np.arange(4)
         X[2 * k, k] += h
         X[2 * k + 1, k] -= h
-        q, qd = mujoco_rollout(model, data, X[:, :2], X[:, 2:], us[None])
+        q, qd = mujoco_batch_rollout(model, data, X[:, :2], X[:, 2:], us[None])
         s = np.concatenate([X[:, None], np.concatenate([q, qd], axis=2)], axis=1)  # (8, T+1, 4)
         return np.moveaxis((s[0::2] - s[1::2]) / (2 * h), 0, -1)  # (T+1, 4, 4)
 

@@ -20,7 +20,7 @@ Throughout, the error of ``a`` against a reference ``b`` is
   see ``test_against_brax.py``), random axes, centres of mass, inertias, damping, armature and
   gears.
 
-The helpers (``seeded_chain``, ``mujoco_model``, ``mujoco_rollout``, ``rel``, ``CHAINS``) are in
+The helpers (``seeded_chain``, ``mujoco_model``, ``mujoco_batch_rollout``, ``rel``, ``CHAINS``) are in
 ``tests/helpers.py``, shared with ``test_against_brax.py`` and ``interop/test_mjcf.py`` (the export's own
 structural checks: the MJCF it writes and the parameters MuJoCo compiles from it).
 """
@@ -39,7 +39,7 @@ from tests.helpers import (
     TRAJECTORY,
     has_slide_below_hinge,
     mujoco_model,
-    mujoco_rollout,
+    mujoco_batch_rollout,
     random_problem,
     rel,
     seeded_chain,
@@ -122,14 +122,14 @@ def test_semi_implicit_euler_matches_mujoco_euler(chain, dt):
     """500 steps of lg.SemiImplicitEuler() against MuJoCo's Euler (implicit damping) to 1e-9."""
     q0, qd0, us = random_problem(chain, 7)
     model, data = mujoco_model(chain, dt, "Euler")
-    q_mj, qd_mj = mujoco_rollout(model, data, q0, qd0, us)
+    q_mj, qd_mj = mujoco_batch_rollout(model, data, q0, qd0, us)
     q, qd = simulate(chain, q0, qd0, us, dt, lg.SemiImplicitEuler())
     assert rel(q, q_mj[0]) <= TRAJECTORY
     assert rel(qd, qd_mj[0]) <= TRAJECTORY
     if chain.damping is not None:
         # the test sees the implicit damping: with MuJoCo's eulerdamp off the trajectories part
         model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_EULERDAMP
-        q_explicit, _ = mujoco_rollout(model, data, q0, qd0, us)
+        q_explicit, _ = mujoco_batch_rollout(model, data, q0, qd0, us)
         assert rel(q_explicit[0], q_mj[0]) > 1e3 * TRAJECTORY
 
 
@@ -147,11 +147,11 @@ def test_rk4_matches_mujoco_rk4(chain, dt):
     """
     q0, qd0, us = random_problem(chain, 8)
     model, data = mujoco_model(chain, dt, "RK4")
-    q_mj, qd_mj = mujoco_rollout(model, data, q0, qd0, us)
+    q_mj, qd_mj = mujoco_batch_rollout(model, data, q0, qd0, us)
     q, qd = simulate(chain, q0, qd0, us, dt, lg.RK4())
     assert rel(q, q_mj[0]) <= TRAJECTORY
     assert rel(qd, qd_mj[0]) <= TRAJECTORY
     # the tolerance tells integrators apart: MuJoCo's own Euler lands far from its RK4
     model_euler, data_euler = mujoco_model(chain, dt, "Euler")
-    q_euler, _ = mujoco_rollout(model_euler, data_euler, q0, qd0, us)
+    q_euler, _ = mujoco_batch_rollout(model_euler, data_euler, q0, qd0, us)
     assert rel(q_euler[0], q_mj[0]) > 1e3 * TRAJECTORY
