@@ -5,6 +5,10 @@ task and the policy as objects and returns the :class:`Trainer`: ``init(key) -> 
 metrics)`` (one jitted iteration, randomness from ``fold_in(key, iteration)``), in the manner of optax's
 ``init``/``update`` pairs and purejaxrl's training functions. :func:`optim.train` is the one host loop that runs any
 of them; :func:`scan_train` runs one as a single jittable function.
+
+A config's round trip through JSON (what a checkpoint's header and a run's ``results.json`` record) is here too:
+:func:`config_to_dict` and :func:`config_from_dict`, :func:`comparable_config` (a config against one saved before a
+field was added) and :func:`config_difference` (the fields that differ, for the errors).
 """
 
 from __future__ import annotations
@@ -16,7 +20,8 @@ from typing import Any, Callable, NamedTuple
 
 import jax
 
-__all__ = ["AlgorithmConfig", "Trainer", "scan_train", "config_to_dict"]
+__all__ = ["AlgorithmConfig", "Trainer", "scan_train", "config_to_dict", "config_from_dict", "comparable_config",
+           "config_difference"]
 
 
 class Trainer(NamedTuple):
@@ -54,13 +59,27 @@ class AlgorithmConfig(abc.ABC):
 
 
 def config_to_dict(cfg: AlgorithmConfig) -> dict:
-    """The config as the JSON a checkpoint header stores (tuples become lists), so it compares equal after a round
-    trip; ``algorithm`` names its class."""
+    """The config as the JSON a checkpoint header stores.
+
+    Args:
+        cfg: a config (a frozen dataclass).
+
+    Returns:
+        ``{"algorithm": <class name>, <field>: <value>, ...}`` as it reads back from JSON (tuples become lists), so it
+        compares equal after a round trip.
+    """
     return json.loads(json.dumps({"algorithm": type(cfg).__name__, **dataclasses.asdict(cfg)}))
 
 
 def config_from_dict(saved: dict) -> AlgorithmConfig:
-    """The config a checkpoint header stored (:func:`config_to_dict`); raises ``ValueError`` naming what is unknown."""
+    """The config that :func:`config_to_dict` stored (lists become tuples again).
+
+    Args:
+        saved: the dict, with its ``"algorithm"`` (a subclass of :class:`AlgorithmConfig`).
+
+    Raises:
+        ValueError: naming an unknown algorithm or unknown fields, or a field out of range.
+    """
     saved = dict(saved)
     name = saved.pop("algorithm", None)
     classes = {c.__name__: c for c in _subclasses(AlgorithmConfig)}
@@ -72,6 +91,37 @@ def config_from_dict(saved: dict) -> AlgorithmConfig:
     if unknown:
         raise ValueError(f"config fields {unknown} are not fields of {name}")
     return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in saved.items()})
+
+
+def comparable_config(cfg: AlgorithmConfig, saved: dict) -> dict:
+    """``cfg`` as a JSON dict (:func:`config_to_dict`) to compare with a ``saved`` one: a field added to the config
+    class since ``saved`` was written is left out while it has its default, so older checkpoints stay valid.
+
+    Args:
+        cfg: the config asked for now.
+        saved: a config dict read back from a checkpoint or a result.
+    """
+    config = config_to_dict(cfg)
+    defaults = json.loads(json.dumps({f.name: f.default for f in dataclasses.fields(cfg)
+                                     if f.default is not dataclasses.MISSING}))
+    return {k: v for k, v in config.items() if k in saved or k not in defaults or v != defaults[k]}
+
+
+def config_difference(saved: dict, now: dict, *, saved_as: str, now_as: str) -> str:
+    """Every key whose value differs between two dicts (configs, or a checkpoint's identity of its task and policy).
+
+    Args:
+        saved: the dict a file recorded.
+        now: the dict asked for now.
+        saved_as: what to call ``saved`` in the text (``"checkpoint"``).
+        now_as: what to call ``now`` (``"requested"``).
+
+    Returns:
+        ``key: <saved_as> old, <now_as> new`` for each differing key, sorted, joined by ``; `` (empty when they
+        agree; a key one of them lacks reads as None).
+    """
+    diff = sorted(k for k in set(saved) | set(now) if saved.get(k) != now.get(k))
+    return "; ".join(f"{k}: {saved_as} {saved.get(k)!r}, {now_as} {now.get(k)!r}" for k in diff)
 
 
 def _subclasses(cls):

@@ -15,6 +15,7 @@ from jaxtyping import Array, Bool, Float, PRNGKeyArray
 
 from lagrange.tasks import AbstractTask
 from optim.episode import Episode, episode
+from optim.grad_clip import clip_grad_norm
 from policies import Normalizer
 
 __all__ = ["APGResult", "apg_steps", "mean_return_loss", "flatten_policy"]
@@ -90,8 +91,7 @@ def apg_steps(task: AbstractTask, unravel: Callable[[Array], Any], params: Float
         norm_g = jnp.sqrt(jnp.sum(g**2))
         g = jnp.where(good, g, 0.0)
         if max_grad_norm is not None:  # g is zero where it was not finite, and so is the norm it is scaled by
-            safe = jnp.maximum(jnp.where(good, norm_g, 0.0), jnp.finfo(g.dtype).tiny)
-            g = g * jnp.minimum(1.0, max_grad_norm / safe)
+            g, _ = clip_grad_norm(g, max_grad_norm, norm=jnp.where(good, norm_g, 0.0), eps=None)
         upd, opt2 = adam.update(g, opt)
         p2 = p - learning_rate * upd
         keep = lambda new, old: jax.tree_util.tree_map(lambda a, b: jnp.where(good, a, b), new, old)

@@ -19,111 +19,53 @@ from typing import Callable, ClassVar, NamedTuple
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 from jax.sharding import NamedSharding, PartitionSpec
-from jaxtyping import Array, Float, Int, PRNGKeyArray
+from jaxtyping import Array, ArrayLike, Float, Int, PRNGKeyArray
 
 from lagrange.tasks import AbstractTask
-from optim.base import AlgorithmConfig, Trainer
+from optim.base import Trainer
 from optim.bptt import apg_steps, flatten_policy, mean_return_loss
+from optim.curriculum import Curriculum, check_curriculum
 from optim.devices import jit_replicated, population_mesh
 from optim.episode import episode
-from optim.validate import check_bool, check_int, check_positive, check_probability
+from optim.inner_apg import InnerAPGConfig
+from optim.validate import check_bool, check_int, check_positive
 from policies import BraxNormalizer, Normalizer
 
-__all__ = ["InnerAPGConfig", "CEAPGConfig", "CEState", "make_trainer", "log_linear_lr", "training_tasks"]
-
-
-def log_linear_lr(iteration, iterations: int, lr_start: float, lr_end: float):
-    """The CE-APG authors' schedule: ``lr_start^((T - i) / T) * lr_end^(i / T)`` at iteration ``i`` of ``T``; ``lr_end``
-    from ``i = T`` on (a run continued past its planned iterations)."""
-    # clamped as an integer, so the float arithmetic below is the same program as before the clamp existed: the
-    # chaotic swing-up training turns a one-ulp change of the learning rate into a different run
-    frac = jnp.asarray(jnp.minimum(iteration, iterations), jnp.float32) / iterations
-    return jnp.exp((1 - frac) * np.log(lr_start) + frac * np.log(lr_end))
-
-
-@dataclasses.dataclass(frozen=True)
-class InnerAPGConfig(AlgorithmConfig):
-    """The settings of the APG inner loop every population member runs, shared by :class:`CEAPGConfig` and
-    :class:`optim.PAPGConfig` (documented on :class:`CEAPGConfig`): ``iterations`` of ``apg_steps`` Adam steps on
-    ``episodes`` episodes at a log-linear learning rate from ``lr_start`` to ``lr_end``, fitness over the last
-    ``fitness_window`` batch returns."""
-
-    iterations: int = 200
-    apg_steps: int = 100
-    episodes: int = 4
-    lr_start: float = 1e-3
-    lr_end: float = 1e-6
-    fitness_window: int = 5
-    normalize: bool = True
-    truncation: int | None = None
-    max_grad_norm: float | None = None
-
-    min_apg_steps: ClassVar[int] = 1  # CE-APG allows 0: the plain cross-entropy method
-
-    def __post_init__(self):
-        c = type(self).__name__
-        check_int(c, "iterations", self.iterations, 1)
-        check_int(c, "apg_steps", self.apg_steps, self.min_apg_steps)
-        check_int(c, "episodes", self.episodes, 1)
-        check_positive(c, "lr_start", self.lr_start)
-        check_positive(c, "lr_end", self.lr_end)
-        check_int(c, "fitness_window", self.fitness_window, 1)
-        check_bool(c, "normalize", self.normalize)
-        if self.truncation is not None:
-            check_int(c, "truncation", self.truncation, 1)
-        if self.max_grad_norm is not None:
-            check_positive(c, "max_grad_norm", self.max_grad_norm)
-        if self.apg_steps and self.fitness_window > self.apg_steps:
-            raise ValueError(f"{c}.fitness_window must be <= apg_steps ({self.apg_steps}), got {self.fitness_window}")
-
-    def learning_rate(self, iteration):
-        """Log-linear from ``lr_start`` at iteration 0 to ``lr_end`` at ``iterations`` (constant within one)."""
-        return log_linear_lr(iteration, self.iterations, self.lr_start, self.lr_end)
+__all__ = ["CEAPGConfig", "CEState", "make_trainer", "training_tasks"]
 
 
 @dataclasses.dataclass(frozen=True)
 class CEAPGConfig(InnerAPGConfig):
-    """CE-APG settings. The defaults are the authors' protocol (``CEAPGConfig.paper()``); ``CEAPGConfig.laptop(name)``
-    is this project's cheaper one for a paper task. The task and the policy are not settings: they are passed to
+    """CE-APG settings. The defaults are the authors' protocol, ``authors_normalizer`` aside (``CEAPGConfig.paper()``:
+    4.8e6 env steps per iteration of 500-step episodes, about 1e9 in all); ``CEAPGConfig.laptop(name)`` is this
+    project's cheaper one for a paper task. The task and the policy are not settings: they are passed to
     :func:`optim.train` (the paper's policy is ``policies.GRUPolicy`` of width 16, 32 for the double cartpole).
 
-    Fields (paper value in brackets):
-      num_candidates: candidates sampled per iteration [24].
-      num_elites: candidates whose post-APG parameters refit the Gaussian [8].
-      iterations: CE iterations [200].
-      apg_steps: Adam steps per candidate per iteration, fresh Adam each time [100].
-      episodes: random-start episodes per APG step [4].
-      init_std: initial per-parameter standard deviation; the mean starts at all zeros [0.05].
-      lr_start, lr_end: Adam step size, log-linear from ``lr_start`` at iteration 0 to
-        ``lr_end`` at iteration ``iterations`` (constant within an iteration) [1e-3, 1e-6].
-      fitness_window: fitness = mean of the last ``fitness_window`` batch returns [5].
-      normalize: running observation normalisation clipped to +-5 [True].
-      authors_normalizer: the authors' normaliser protocol [True; ``paper()`` sets it; the field's default is
-        False]: ONE :class:`policies.BraxNormalizer` (Brax v1's, from its prior ``m2 = 1``) shared by all
-        candidates, updated once per iteration from one episode of the CE mean (started from candidate 0's key, with
-        the normaliser of the previous iteration) before the candidates run, and frozen through every APG step and
-        the fitness; CEM never updates it. False (this project's laptop protocol): a :class:`policies.Normalizer` per
-        candidate that absorbs every APG batch, the elites' statistics averaged into the next iteration's.
-      truncation: truncated-BPTT window, None = whole episode [None].
-      max_grad_norm: rescale each APG step's gradient to at most this global 2-norm before Adam, None = no
-        clipping [None: the authors' ``adaptive_grad_clip(1e9)`` never engages].
-      upright_starts: probability that a *training* episode starts balanced upright instead of
-        hanging, a curriculum that shows every candidate the balance it must end in [0]. Fitness
-        counts those episodes too; ``Trainer.task`` (what is evaluated) keeps the task's own start. Needs a task with
-        an ``upright`` field (the swing-ups of :mod:`lagrange.tasks`).
-      train_noise: half-width of the uniform noise on the angles and velocities at the start of every *training*
-        episode (warm-up stages included), None = the task's own (+-0.01) [None]. Needs a task with a ``noise``
-        field; ``Trainer.task`` keeps the task's noise.
-      warmup_horizons, warmup_iterations, warmup_upright: a curriculum of training-episode lengths
-        [not in the paper; none]. The first ``len(warmup_horizons) * warmup_iterations`` of the ``iterations`` train
-        and score candidates on episodes of ``warmup_horizons[0]``, then ``[1]``, ... control steps
-        (``warmup_iterations`` each) that start upright with probability ``warmup_upright``; the
-        rest use the task's horizon and ``upright_starts``. The learning-rate schedule runs across all iterations.
+    The fields of the APG inner loop are :class:`optim.inner_apg.InnerAPGConfig`'s (``iterations`` counts CE
+    iterations here, ``apg_steps`` the Adam steps of every candidate in each, from a fresh Adam state); the five
+    curriculum fields make the :class:`optim.curriculum.Curriculum` ``config.curriculum`` (they stay flat fields, so
+    that the JSON a checkpoint or a result records and the benchmarks' ``--set warmup_horizons=300,400`` keep their
+    form).
 
-    The field defaults are the paper's numbers, ``authors_normalizer`` aside (4.8e6 env steps per iteration of
-    500-step episodes, about 1e9 in all).
+    Attributes:
+        num_candidates (int): candidates sampled per iteration, >= 1 (paper: 24).
+        num_elites (int): candidates whose post-APG parameters refit the Gaussian, 1 <= num_elites <=
+            num_candidates (paper: 8).
+        init_std (float): initial per-parameter standard deviation, >= 0; the mean starts at all zeros (paper: 0.05).
+        upright_starts (float): :attr:`optim.curriculum.Curriculum.upright_starts` (paper: 0).
+        train_noise (float | None): :attr:`optim.curriculum.Curriculum.train_noise` (paper: None).
+        warmup_horizons (tuple[int, ...]): :attr:`optim.curriculum.Curriculum.warmup_horizons` (paper: none);
+            needs ``apg_steps >= 1``, and ``iterations`` must cover the warm-up.
+        warmup_iterations (int): :attr:`optim.curriculum.Curriculum.warmup_iterations`.
+        warmup_upright (float): :attr:`optim.curriculum.Curriculum.warmup_upright`.
+        authors_normalizer (bool): the authors' normaliser protocol (paper: True; ``paper()`` sets it, the field's
+            default is False): ONE :class:`policies.BraxNormalizer` (Brax v1's, from its prior ``m2 = 1``) shared by
+            all candidates, updated once per iteration from one episode of the CE mean (started from candidate 0's
+            key, with the normaliser of the previous iteration) before the candidates run, and frozen through every
+            APG step and the fitness; CEM never updates it. False (this project's laptop protocol): a
+            :class:`policies.Normalizer` per candidate that absorbs every APG batch, the elites' statistics averaged
+            into the next iteration's. Needs ``normalize=True``.
     """
 
     num_candidates: int = 24
@@ -147,30 +89,21 @@ class CEAPGConfig(InnerAPGConfig):
             raise ValueError(
                 f"{c}.num_elites must be <= num_candidates ({self.num_candidates}), got {self.num_elites}")
         check_positive(c, "init_std", self.init_std, allow_zero=True)
-        check_probability(c, "upright_starts", self.upright_starts)
-        if self.train_noise is not None:
-            check_positive(c, "train_noise", self.train_noise, allow_zero=True)
-        if isinstance(self.warmup_horizons, (str, bytes)) or not hasattr(self.warmup_horizons, "__iter__"):
-            raise ValueError(f"{c}.warmup_horizons must be a sequence of integers >= 1, got {self.warmup_horizons!r}")
-        object.__setattr__(self, "warmup_horizons", tuple(self.warmup_horizons))
-        for i, h in enumerate(self.warmup_horizons):
-            check_int(c, f"warmup_horizons[{i}]", h, 1)
-        check_int(c, "warmup_iterations", self.warmup_iterations, 1)
-        check_probability(c, "warmup_upright", self.warmup_upright)
+        check_curriculum(c, self)
         check_bool(c, "authors_normalizer", self.authors_normalizer)
         if self.authors_normalizer and not self.normalize:
             raise ValueError(f"{c}.authors_normalizer needs normalize=True (it is a normaliser protocol)")
         if self.warmup_horizons and self.apg_steps == 0:
             raise ValueError(f"{c}.warmup_horizons needs apg_steps >= 1 (the curriculum shapes the APG gradient), "
                              f"got apg_steps=0")
-        if self.warmup_stages * self.warmup_iterations > self.iterations:
+        if self.curriculum.warmup_length > self.iterations:
             raise ValueError(f"{c}.iterations ({self.iterations}) must cover the warm-up: len(warmup_horizons) * "
-                             f"warmup_iterations = {self.warmup_stages * self.warmup_iterations}")
+                             f"warmup_iterations = {self.curriculum.warmup_length}")
 
     @classmethod
     def paper(cls, **overrides) -> "CEAPGConfig":
-        """The authors' protocol (24 candidates x 100 APG steps x 4 episodes per iteration, 200 iterations, their
-        normaliser protocol)."""
+        """The authors' protocol: 24 candidates x 100 APG steps x 4 episodes per iteration, 200 iterations, their
+        normaliser protocol; ``overrides`` are fields to change."""
         return cls(**{"authors_normalizer": True, **overrides})
 
     @classmethod
@@ -184,6 +117,13 @@ class CEAPGConfig(InnerAPGConfig):
         Cartpole: 8 elites, 25 APG steps of 2 episodes, 120 iterations, 1e-2 -> 1e-4, initial std 0.15:
         7.2e7 env steps. Double cartpole: 8 elites, 25 APG steps of 2 episodes, 150 iterations, 1e-2 -> 1e-4,
         initial std 0.15 (9e7 env steps). Measured results: the docs' "Reproducing the paper".
+
+        Args:
+            task: ``"acrobot"``, ``"cartpole"`` or ``"double_cartpole"``.
+            **overrides: fields to change.
+
+        Raises:
+            ValueError: for another task name, or a field out of range.
         """
         if task == "acrobot":
             # the clip keeps a BPTT gradient spike from shrinking the rest of a candidate's Adam steps; on the
@@ -198,54 +138,60 @@ class CEAPGConfig(InnerAPGConfig):
                              f"got {task!r}")
         return cls(**{**base, **overrides})
 
+    @property
+    def curriculum(self) -> Curriculum:
+        """The five curriculum fields as one :class:`optim.curriculum.Curriculum`."""
+        return Curriculum(self.upright_starts, self.train_noise, self.warmup_horizons, self.warmup_iterations,
+                          self.warmup_upright)
+
     def with_iterations(self, iterations: int) -> "CEAPGConfig":
         """The same protocol over ``iterations`` CE iterations. The learning-rate schedule spans ``iterations``
-        and so compresses by itself; the warm-up compresses in proportion (``warmup_iterations * iterations //
-        self.iterations`` per stage), and is dropped when that is less than one iteration."""
-        if not self.warmup_horizons:
-            return dataclasses.replace(self, iterations=iterations)
-        per_stage = self.warmup_iterations * iterations // self.iterations
-        if per_stage >= 1:
-            return dataclasses.replace(self, iterations=iterations, warmup_iterations=per_stage)
-        return dataclasses.replace(self, iterations=iterations, warmup_horizons=())
+        and so compresses by itself; the warm-up compresses in proportion
+        (:meth:`optim.curriculum.Curriculum.compressed`)."""
+        short = self.curriculum.compressed(self.iterations, iterations)
+        return dataclasses.replace(self, iterations=iterations, warmup_horizons=short.warmup_horizons,
+                                   warmup_iterations=short.warmup_iterations)
 
     @property
     def warmup_stages(self) -> int:
-        return len(self.warmup_horizons)
+        """The number of warm-up stages, ``len(warmup_horizons)``."""
+        return self.curriculum.stages
 
-    def stage(self, iteration):
-        """Curriculum stage of ``iteration`` (0-based; an int or a traced array): ``i < warmup_stages`` trains on
-        ``warmup_horizons[i]``, ``warmup_stages`` on the task itself."""
-        return jnp.minimum(iteration // self.warmup_iterations, self.warmup_stages)
+    def stage(self, iteration: Int[ArrayLike, ""]) -> Int[Array, ""]:
+        """:meth:`optim.curriculum.Curriculum.stage` of the 0-based ``iteration``."""
+        return self.curriculum.stage(iteration)
 
     def training_horizon(self, iteration: int, horizon: int) -> int:
-        """Episode length candidates train on at ``iteration`` (0-based): a warm-up horizon, then the task's
-        ``horizon``."""
-        return (*self.warmup_horizons, horizon)[int(self.stage(iteration))]
+        """:meth:`optim.curriculum.Curriculum.training_horizon`: the episode length candidates train on at the
+        0-based ``iteration`` of a task of ``horizon`` control steps."""
+        return self.curriculum.training_horizon(iteration, horizon)
 
     def env_steps_per_iteration(self, horizon: int, iteration: int | None = None) -> int:
-        """Simulated steps of one iteration on episodes of ``horizon`` steps (of iteration ``iteration`` when there is
-        a warm-up)."""
+        """Simulated control steps of one iteration on a task of ``horizon`` steps (of the 0-based ``iteration``,
+        whose warm-up stage may shorten the episodes)."""
         h = horizon if iteration is None else self.training_horizon(iteration, horizon)
         return self.num_candidates * max(self.apg_steps, 1) * self.episodes * h
 
     def total_env_steps(self, horizon: int) -> int:
-        """Simulated steps of the whole run on a task of ``horizon`` steps."""
+        """Simulated control steps of the whole run on a task of ``horizon`` steps."""
         return sum(self.env_steps_per_iteration(horizon, i) for i in range(self.iterations))
 
     def make_trainer(self, task: AbstractTask, policy, *, objective: Callable | None = None) -> Trainer:
+        """:func:`optim.ce_apg.make_trainer` of this config."""
         return make_trainer(self, task, policy, objective=objective)
 
 
 class CEState(NamedTuple):
-    """CE-APG's training state.
+    """CE-APG's training state (``P`` flat policy parameters).
 
     Attributes:
-        mean, std: the search distribution over the flat parameters, ``(P,)`` each.
-        normalizer: its observation normaliser (None without normalisation).
-        best: the best candidate of the last iteration ``(P,)``, and ``best_normalizer`` its normaliser.
-        key: the run's raw key; iteration ``i`` draws from ``fold_in(key, i)``.
-        iteration: iterations done, ``()`` int32.
+        mean (Float[Array, "P"]): the search distribution's mean.
+        std (Float[Array, "P"]): its per-parameter standard deviation.
+        normalizer (Normalizer | BraxNormalizer | None): its observation normaliser (None without normalisation).
+        best (Float[Array, "P"]): the best candidate of the last iteration.
+        best_normalizer (Normalizer | BraxNormalizer | None): that candidate's normaliser.
+        key (PRNGKeyArray): the run's raw key; iteration ``i`` draws from ``fold_in(key, i)``.
+        iteration (Int[Array, ""]): iterations done, int32.
     """
 
     mean: Float[Array, " P"]
@@ -258,23 +204,26 @@ class CEState(NamedTuple):
 
 
 def training_tasks(config: CEAPGConfig, task: AbstractTask) -> list[AbstractTask]:
-    """The tasks candidates train and are scored on, one per curriculum stage: the warm-up horizons (starting upright
-    with probability ``warmup_upright``), then ``task`` itself with ``upright_starts``; all with ``train_noise``."""
-    for name, wanted in (("noise", config.train_noise is not None), ("upright", config.upright_starts > 0
-                                                                        or bool(config.warmup_horizons))):
-        if wanted and not hasattr(task, name):
-            raise ValueError(f"{type(config).__name__}: the curriculum needs a task with a {name!r} field (the "
-                             f"swing-ups of lagrange.tasks); {type(task).__name__} has none. Leave train_noise=None, "
-                             f"upright_starts=0 and warmup_horizons=() for this task")
-    noisy = task if config.train_noise is None else dataclasses.replace(task, noise=float(config.train_noise))
-    train_task = dataclasses.replace(noisy, upright=config.upright_starts) if config.upright_starts else noisy
-    stages = [dataclasses.replace(noisy, horizon=h, upright=config.warmup_upright) for h in config.warmup_horizons]
-    return stages + [train_task]
+    """The tasks candidates train and are scored on, one per curriculum stage
+    (:meth:`optim.curriculum.Curriculum.tasks` of ``config.curriculum``); errors name ``config``'s class."""
+    return config.curriculum.tasks(task, owner=type(config).__name__)
 
 
 def make_trainer(config: CEAPGConfig, task: AbstractTask, policy, *, objective: Callable | None = None) -> Trainer:
-    """CE-APG on ``task`` over the parameters of ``policy`` (its architecture; the mean starts at zeros, as the
-    authors'); ``update`` runs one jitted CE iteration with the candidates sharded over ``jax.devices()``."""
+    """CE-APG on ``task`` over the parameters of ``policy``; ``update`` runs one jitted CE iteration with the
+    candidates sharded over ``jax.devices()``.
+
+    Args:
+        config: the settings.
+        task: the task candidates train on (through ``config.curriculum``) and the trainer evaluates.
+        policy: the policy module, its architecture (the search mean starts at zeros, as the authors').
+        objective: the loss of an episode batch (default :func:`optim.mean_return_loss`).
+
+    Returns:
+        The :class:`optim.Trainer`. Its metrics: ``best_return``, ``elite_return``, ``mean_return`` (of the finite
+        candidates), ``nonfinite`` (how many candidates went non-finite) and ``nonfinite_members`` (which: a
+        ``(num_candidates,)`` bool mask), ``learning_rate``, ``std``, ``env_steps``, ``training_horizon``.
+    """
     objective = mean_return_loss if objective is None else objective
     stage_tasks = training_tasks(config, task)
     stage_horizons = jnp.asarray([t.horizon for t in stage_tasks], jnp.float32)
@@ -361,6 +310,7 @@ def make_trainer(config: CEAPGConfig, task: AbstractTask, policy, *, objective: 
             "mean_return": jnp.sum(jnp.where(finite, fitness, 0.0)) / jnp.maximum(jnp.sum(finite), 1),
             "elite_return": jnp.mean(fitness[elite]),
             "nonfinite": jnp.sum(bad),
+            "nonfinite_members": bad,
             "learning_rate": lr,
             "std": jnp.mean(new_std),
             "env_steps": stage_steps[stage],

@@ -20,8 +20,8 @@ from jaxtyping import Array, Float, Int, PRNGKeyArray
 from lagrange.tasks import AbstractTask
 from optim.base import Trainer
 from optim.bptt import apg_steps, flatten_policy, mean_return_loss
-from optim.ce_apg import InnerAPGConfig
 from optim.devices import jit_replicated, population_mesh
+from optim.inner_apg import InnerAPGConfig
 from optim.validate import check_int
 from policies import Normalizer
 
@@ -30,7 +30,7 @@ __all__ = ["PAPGConfig", "PAPGState", "make_trainer"]
 
 @dataclasses.dataclass(frozen=True)
 class PAPGConfig(InnerAPGConfig):
-    """Fields as in :class:`optim.CEAPGConfig` (the shared ones in :class:`optim.ce_apg.InnerAPGConfig`);
+    """Fields as in :class:`optim.CEAPGConfig` (the shared ones in :class:`optim.inner_apg.InnerAPGConfig`);
     ``num_runs`` independent runs [24], a multiple of the device count."""
 
     num_runs: int = 24
@@ -97,6 +97,7 @@ def make_trainer(config: PAPGConfig, task: AbstractTask, policy, *, objective: C
             "best_return": jnp.max(fit),
             "mean_return": jnp.sum(jnp.where(finite, fit, 0.0)) / jnp.maximum(jnp.sum(finite), 1),
             "nonfinite": jnp.sum(bad),
+            "nonfinite_members": bad,
             "learning_rate": lr,
             "env_steps": jnp.asarray(config.env_steps_per_iteration(task.horizon), jnp.float32),
         }

@@ -7,7 +7,6 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
-import optax
 
 from policies.actor_critic import Actor, Critic
 
@@ -35,15 +34,6 @@ def td_lambda_targets(rewards, next_values, dones, gamma: float, lam: float):
 def soft_update(target, online, alpha: float):
     """``alpha target + (1 - alpha) online`` leaf by leaf (the authors' target critic update)."""
     return jax.tree_util.tree_map(lambda t, o: alpha * t + (1 - alpha) * o, target, online)
-
-
-def clip_grad_norm(grads, max_norm):
-    """PyTorch's ``clip_grad_norm_``: scale by ``min(1, max_norm / (norm + 1e-6))``; returns (grads, norm)."""
-    norm = optax.tree.norm(grads)
-    if max_norm is None:
-        return grads, norm
-    coef = jnp.minimum(1.0, max_norm / (norm + 1e-6))
-    return jax.tree_util.tree_map(lambda g: g * coef, grads), norm
 
 
 class Window(NamedTuple):
