@@ -2,13 +2,14 @@
 
 The actor's output layer is linear (the mean) and its log-std a state-independent vector initialised to
 -1; its layers keep equinox's default (PyTorch-style uniform) initialisation. The critic's layers are
-orthogonal with gain sqrt(2) and zero biases, as in the authors' code. :class:`DeterministicPolicy` gives
-the actor's evaluation action the rollout interface of the other policies here.
+orthogonal with gain sqrt(2) and zero biases, as in the authors' code. As a rollout policy
+(:class:`policies.AbstractPolicy`) the actor acts deterministically, its evaluation action ``tanh(mu(obs))``.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import final
 
 import equinox as eqx
 import jax
@@ -17,7 +18,9 @@ import numpy as np
 from jax.typing import DTypeLike
 from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
-__all__ = ["Actor", "Critic", "DeterministicPolicy"]
+from policies.base import AbstractPolicy
+
+__all__ = ["Actor", "Critic"]
 
 
 class _MLP(eqx.Module):
@@ -53,9 +56,12 @@ class _MLP(eqx.Module):
         return self.out(x)
 
 
-class Actor(eqx.Module):
-    """Stochastic tanh-Gaussian actor: ``a = tanh(mu(obs) + exp(log_std) eps)``, ``eps ~ N(0, I)``;
-    ``log_std`` (action_size,) does not depend on the state. ``obs`` is the normalised observation.
+@final
+class Actor(AbstractPolicy):
+    """Stochastic tanh-Gaussian actor: ``a = tanh(mu(obs) + exp(log_std) eps)``, ``eps ~ N(0, I)``
+    (:meth:`sample`); ``log_std`` (action_size,) does not depend on the state. ``obs`` is the normalised
+    observation. As a rollout policy, ``actor(obs, hidden, reset) -> (action, hidden)`` with an empty hidden
+    state, it acts deterministically: ``tanh(mu(obs))`` (:meth:`deterministic`, the evaluation action).
     Unbatched: ``jax.vmap`` the methods over environments.
 
     Args:
@@ -71,20 +77,14 @@ class Actor(eqx.Module):
     mu: _MLP
     log_std: Float[Array, " action_size"]
     init_log_std: float = eqx.field(static=True)
+    hidden_size: int = eqx.field(static=True, default=0)
 
     def __init__(self, obs_size: int, action_size: int, units: Sequence[int] = (64, 64), init_log_std: float = -1.0,
                  *, key: PRNGKeyArray, dtype: DTypeLike | None = None):
         self.mu = _MLP(obs_size, action_size, tuple(units), orthogonal_gain=None, key=key, dtype=dtype)
         self.log_std = jnp.full(action_size, init_log_std, self.mu.out.weight.dtype)
         self.init_log_std = float(init_log_std)
-
-    @classmethod
-    def for_task(cls, task, units: Sequence[int] = (64, 64), init_log_std: float = -1.0, *,
-                 key: PRNGKeyArray | None = None, dtype: DTypeLike | None = None) -> "Actor":
-        """An actor sized for ``task`` (its ``observation_size`` and ``action_size``); ``key`` defaults to
-        ``PRNGKey(0)`` (SHAC draws its own initial weights with :meth:`reinit`)."""
-        key = jax.random.PRNGKey(0) if key is None else key
-        return cls(task.observation_size, task.action_size, units, init_log_std, key=key, dtype=dtype)
+        self.hidden_size = 0
 
     def reinit(self, key: PRNGKeyArray) -> "Actor":
         """The same architecture (sizes, ``init_log_std`` and dtype) with fresh initial weights drawn from ``key``."""
@@ -111,6 +111,17 @@ class Actor(eqx.Module):
         normalised observation ``obs`` of shape ``(obs_size,)``."""
         return jnp.tanh(self.mu(obs))
 
+    def __call__(
+        self,
+        obs: Float[ArrayLike, " obs_size"],
+        hidden: Float[Array, " 0"],
+        reset: Bool[ArrayLike, ""] = False,
+    ) -> tuple[Float[Array, " action_size"], Float[Array, " 0"]]:
+        """``(deterministic(obs), hidden)``: the evaluation action in ``(-1, 1)``, shape ``(action_size,)``
+        (dimensionless), for the normalised observation of shape ``(obs_size,)``; ``hidden`` (shape ``(0,)``) is
+        returned unchanged and ``reset`` is unused."""
+        return self.deterministic(obs), hidden
+
 
 class Critic(eqx.Module):
     """State-value critic ``V(obs)`` (scalar) on normalised observations. Unbatched: ``jax.vmap`` it
@@ -133,31 +144,3 @@ class Critic(eqx.Module):
         """The value of the normalised observation ``obs`` (shape ``(obs_size,)``): a scalar, in the
         task's reward units (a discounted sum of rewards)."""
         return self.net(obs)[0]
-
-
-class DeterministicPolicy(eqx.Module):
-    """The actor's evaluation policy with the rollout interface of :mod:`policies`
-    (``policy(obs, hidden, reset) -> (action, hidden)``, a (0,)-sized hidden state).
-
-    Args:
-        actor: the trained :class:`Actor`.
-        hidden_size: always 0 (the policy is stateless); static.
-    """
-
-    actor: Actor
-    hidden_size: int = eqx.field(static=True, default=0)
-
-    def initial_state(self) -> Float[Array, " 0"]:
-        """The empty hidden state, shape ``(0,)``, in the actor's dtype."""
-        return jnp.zeros(0, self.actor.log_std.dtype)
-
-    def __call__(
-        self,
-        obs: Float[ArrayLike, " obs_size"],
-        hidden: Float[Array, " 0"],
-        reset: Bool[ArrayLike, ""] = False,
-    ) -> tuple[Float[Array, " action_size"], Float[Array, " 0"]]:
-        """``(actor.deterministic(obs), hidden)``: the action in ``(-1, 1)``, shape ``(action_size,)``
-        (dimensionless), for the normalised observation of shape ``(obs_size,)``; ``hidden`` (shape
-        ``(0,)``) is returned unchanged and ``reset`` is unused."""
-        return self.actor.deterministic(obs), hidden

@@ -2,14 +2,21 @@
 
 from __future__ import annotations
 
+from typing import final
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jax.typing import DTypeLike
 from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
+from policies.base import AbstractPolicy
 
-class GRUPolicy(eqx.Module):
+__all__ = ["GRUPolicy"]
+
+
+@final
+class GRUPolicy(AbstractPolicy):
     """Deterministic recurrent policy: Dense(H)+ReLU -> GRU cell (hidden size = observation size)
     -> Dense(H)+ReLU -> Dense(H)+ReLU -> Dense(action) + tanh (the authors' layout; H = 16, or 32
     for the double cartpole).
@@ -47,22 +54,10 @@ class GRUPolicy(eqx.Module):
         self.head = eqx.nn.Linear(width, action_size, dtype=dtype, key=k[4])
         self.hidden_size = obs_size
 
-    @classmethod
-    def for_task(cls, task, width: int = 16, *, key: PRNGKeyArray | None = None,
-                 dtype: DTypeLike | None = None) -> "GRUPolicy":
-        """A policy sized for ``task`` (its ``observation_size`` and ``action_size``); ``key`` defaults to
-        ``PRNGKey(0)`` (the training algorithms draw their own initial weights with :meth:`reinit`)."""
-        key = jax.random.PRNGKey(0) if key is None else key
-        return cls(task.observation_size, task.action_size, width, key=key, dtype=dtype)
-
     def reinit(self, key: PRNGKeyArray) -> "GRUPolicy":
         """The same architecture (sizes and dtype) with fresh initial weights drawn from ``key``."""
         return GRUPolicy(self.hidden_size, self.head.out_features, self.embed.out_features, key=key,
                          dtype=self.fc1.weight.dtype)
-
-    def initial_state(self) -> Float[Array, " obs_size"]:
-        """The zero hidden state, shape ``(hidden_size,) = (obs_size,)``, in the weights' dtype."""
-        return jnp.zeros(self.hidden_size, self.fc1.weight.dtype)
 
     def __call__(
         self,

@@ -2,14 +2,21 @@
 
 from __future__ import annotations
 
+from typing import final
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jax.typing import DTypeLike
 from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
+from policies.base import AbstractPolicy
 
-class MLPPolicy(eqx.Module):
+__all__ = ["MLPPolicy"]
+
+
+@final
+class MLPPolicy(AbstractPolicy):
     """Deterministic MLP: ``depth`` hidden layers of ``width`` with ReLU, then Dense(action) + tanh.
 
     Stateless, but it takes and returns a (0,)-sized hidden state so that rollouts treat every
@@ -39,22 +46,10 @@ class MLPPolicy(eqx.Module):
                               final_activation=jnp.tanh, dtype=dtype, key=key)
         self.hidden_size = 0
 
-    @classmethod
-    def for_task(cls, task, width: int = 64, depth: int = 2, *, key: PRNGKeyArray | None = None,
-                 dtype: DTypeLike | None = None) -> "MLPPolicy":
-        """A policy sized for ``task`` (its ``observation_size`` and ``action_size``); ``key`` defaults to
-        ``PRNGKey(0)`` (the training algorithms draw their own initial weights with :meth:`reinit`)."""
-        key = jax.random.PRNGKey(0) if key is None else key
-        return cls(task.observation_size, task.action_size, width, depth, key=key, dtype=dtype)
-
     def reinit(self, key: PRNGKeyArray) -> "MLPPolicy":
         """The same architecture (sizes, depth and dtype) with fresh initial weights drawn from ``key``."""
         m = self.mlp
         return MLPPolicy(m.in_size, m.out_size, m.width_size, m.depth, key=key, dtype=m.layers[-1].weight.dtype)
-
-    def initial_state(self) -> Float[Array, " 0"]:
-        """The empty hidden state, shape ``(0,)``, in the weights' dtype."""
-        return jnp.zeros(0, self.mlp.layers[-1].weight.dtype)
 
     def __call__(
         self,

@@ -14,9 +14,10 @@ from jax.sharding import NamedSharding, PartitionSpec
 from lagrange.tasks import AbstractTask, TaskState
 from optim.base import Trainer
 from optim.devices import jit_replicated, population_mesh
-from optim.shac.losses import actor_loss, clip_grad_norm, soft_update, td_lambda_targets
+from optim.grad_clip import clip_grad_norm
+from optim.shac.losses import actor_loss, soft_update, td_lambda_targets
 from policies import Normalizer
-from policies.actor_critic import Actor, Critic, DeterministicPolicy
+from policies.actor_critic import Actor, Critic
 
 __all__ = ["SHACState", "make_trainer"]
 
@@ -151,15 +152,16 @@ def make_trainer(config, task: AbstractTask, actor: Actor) -> Trainer:
         progress = jnp.where(broken, 0, progress)
         ep_return = jnp.where(broken, 0.0, ep_return)
         metrics["restarted_envs"] = jnp.sum(broken, dtype=jnp.int32)
+        metrics["nonfinite_envs"] = broken
         new = SHACState(actor, critic, target, actor_opt, critic_opt, norm, env_state, progress,
                         ep_return, state.key, state.iteration + 1)
         return new, metrics
 
     def policy_of(state: SHACState, which: str = "best"):
-        """``(DeterministicPolicy(actor), normalizer)``: ``tanh`` of the actor's mean."""
+        """``(actor, normalizer)``: the actor, which acts by ``tanh`` of its mean as a rollout policy."""
         if which != "best":
             raise ValueError(f"SHAC has one policy: which must be 'best', got {which!r}")
-        return DeterministicPolicy(state.actor), state.normalizer
+        return state.actor, state.normalizer
 
     return Trainer(init, jit_replicated(update, replicated), policy_of, task, config,
                    ("episode_return", "value_loss"))

@@ -1,13 +1,13 @@
 """SHAC's actor and critic (policies/actor_critic.py) against a NumPy re-implementation of their layers
 (Linear -> ELU -> LayerNorm, then a linear output), the critic's orthogonal initialisation (``W W^T = 2 I`` and zero
-biases), the actor's reparameterised tanh-Gaussian sample by hand, and the deterministic policy's rollout interface."""
+biases), the actor's reparameterised tanh-Gaussian sample by hand, and its rollout interface (the deterministic action)."""
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from policies.actor_critic import Actor, Critic, DeterministicPolicy
+from policies.actor_critic import Actor, Critic
 
 
 def _numpy_mlp(mlp, x):
@@ -49,12 +49,11 @@ def test_actor_sample_and_deterministic_action_by_hand():
     np.testing.assert_allclose(np.diag(g), (1 - a**2) * np.exp(-0.5) * eps, rtol=1e-10, atol=1e-14)
 
 
-def test_deterministic_policy_has_the_rollout_interface():
+def test_the_actor_as_a_rollout_policy_acts_deterministically():
     actor = Actor(3, 1, (8,), key=jax.random.PRNGKey(3))
-    policy = DeterministicPolicy(actor)
-    h = policy.initial_state()
-    assert h.shape == (0,) and policy.hidden_size == 0
+    h = actor.initial_state()
+    assert h.shape == (0,) and h.dtype == actor.log_std.dtype and actor.hidden_size == 0
     obs = jnp.array([0.5, -0.5, 2.0])
-    a, h2 = policy(obs, h, True)
+    a, h2 = actor(obs, h, True)
     np.testing.assert_array_equal(a, actor.deterministic(obs))
     assert h2.shape == (0,)
