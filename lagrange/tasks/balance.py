@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
-from lagrange.tasks.base import AbstractTask, _link_angles
+from lagrange.tasks.base import AbstractTask, pole_orientations
 
 __all__ = ["balanced", "leaves_upright", "upright_error"]
 
@@ -52,4 +52,4 @@ def upright_error(task: AbstractTask, q: Float[ArrayLike, "*batch n"]) -> Float[
     """The largest angle (rad) by which any pole is away from upright, per step: ``q`` (..., n) -> (...).
 
     Measured on each link's absolute orientation (the sum of the joint angles from the base), the cart excluded."""
-    return jnp.max(jnp.abs(_link_angles(task, jnp.asarray(q))), axis=-1)
+    return jnp.max(jnp.abs(pole_orientations(task, jnp.asarray(q))), axis=-1)

@@ -24,9 +24,10 @@ from lagrange.chain import Chain
 from lagrange.integrate import step as _step
 from lagrange.solvers import SemiImplicitEuler, SymplecticEuler
 
-__all__ = ["TaskState", "AbstractTask", "control_step", "wrap"]
+__all__ = ["TaskState", "AbstractTask", "TaskSolver", "control_step", "wrap", "pole_orientations",
+           "check_schedule", "check_joints"]
 
-_Solver = diffrax.AbstractSolver | SemiImplicitEuler | SymplecticEuler
+TaskSolver = diffrax.AbstractSolver | SemiImplicitEuler | SymplecticEuler
 """The solvers a task steps with (:mod:`lagrange.solvers`; any explicit diffrax Runge-Kutta solver)."""
 
 
@@ -57,7 +58,7 @@ class AbstractTask(eqx.Module):
     dt: AbstractVar[float]
     horizon: AbstractVar[int]
     substeps: AbstractVar[int]
-    solver: AbstractVar[_Solver]
+    solver: AbstractVar[TaskSolver]
     first_pole: AbstractClassVar[int]
     name: AbstractClassVar[str]
 
@@ -106,7 +107,7 @@ class AbstractTask(eqx.Module):
 
     def link_angles(self, state: TaskState) -> Float[Array, " n_links"]:
         """Absolute pole orientations (n_links,) [rad], wrapped, 0 = pointing straight up."""
-        return _link_angles(self, state.q)
+        return pole_orientations(self, state.q)
 
     def angular_velocities(self, state: TaskState) -> Float[Array, " n_links"]:
         """Joint velocities of the poles (n_links,) [rad/s], relative as the angles are."""
@@ -115,19 +116,55 @@ class AbstractTask(eqx.Module):
 
 def control_step(task: AbstractTask, state: TaskState, action: Float[ArrayLike, " m"]) -> TaskState:
     """One control interval ``task.dt`` (``task.substeps`` solver steps of ``task.solver``) under
-    ``clip(action, -1, 1)`` times the chain's gear; the ``step`` of every task."""
+    ``clip(action, -1, 1)`` times the chain's gear; the ``step`` of every task.
+
+    Args:
+        task: the task.
+        state: one state, ``q`` and ``qd`` of shape ``(n,)`` each.
+        action: one action, shape ``(m,)`` (``m = task.action_size``), dimensionless; integers are converted.
+
+    Returns:
+        The state one interval later.
+
+    Raises:
+        ValueError: for a state or an action of another shape (a batch: ``jax.vmap`` the step over it).
+        TypeError: for a boolean or complex action.
+    """
+    n, m, cls = task.chain.n, task.chain.m, type(task).__name__
+    if jnp.shape(state.q) != (n,) or jnp.shape(state.qd) != (n,):
+        raise ValueError(f"{cls}.step: state.q and state.qd must have shape (n,) = ({n},), got {jnp.shape(state.q)} "
+                         f"and {jnp.shape(state.qd)}; jax.vmap the step over a batch of states")
+    if jnp.shape(action) != (m,):
+        raise ValueError(f"{cls}.step: action must have shape (m,) = ({m},), one entry per actuated joint, got "
+                         f"{jnp.shape(action)}; jax.vmap the step over a batch of actions")
+    kind = jnp.result_type(action)
+    if kind == jnp.bool_ or jnp.issubdtype(kind, jnp.complexfloating):
+        raise TypeError(f"{cls}.step: action must hold real numbers in [-1, 1], got dtype {kind}")
     a = jnp.clip(action, -1.0, 1.0)
     q, qd = _step(task.chain, state.q, state.qd, a, task.dt, task.solver, task.substeps)
     return TaskState(q, qd)
 
 
-def _link_angles(task: AbstractTask, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch n_links"]:
+def pole_orientations(task: AbstractTask, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch n_links"]:
+    """Absolute orientations of the poles [rad], wrapped to ``(-pi, pi]``, 0 = pointing straight up.
+
+    Args:
+        task: the task (its ``first_pole`` says where the poles start in ``q``).
+        q: coordinates, shape ``(*batch, n)`` (a state's, or a trajectory's).
+
+    Returns:
+        The sum of the joint angles from the base to each pole minus pi, wrapped, shape ``(*batch, n_links)``.
+    """
     rel = q[..., task.first_pole:]
     return wrap(jnp.cumsum(rel, axis=-1) - jnp.pi)
 
 
-def _check_schedule(task: AbstractTask) -> None:
-    """``dt``, ``horizon`` and ``substeps`` in range, or a ``ValueError`` naming the field."""
+def check_schedule(task: AbstractTask) -> None:
+    """Check a task's ``dt``, ``horizon`` and ``substeps`` (for a task's ``__check_init__``).
+
+    Raises:
+        ValueError: naming the field that is out of range (``horizon``, ``substeps``: integers >= 1; ``dt`` > 0).
+    """
     cls = type(task).__name__
     for field in ("horizon", "substeps"):
         v = getattr(task, field)
@@ -137,8 +174,12 @@ def _check_schedule(task: AbstractTask) -> None:
         raise ValueError(f"{cls}.dt must be > 0 (seconds), got {task.dt!r}")
 
 
-def _check_joints(task: AbstractTask, joints: tuple[str, ...]) -> None:
-    """The chain's joint kinds are ``joints`` and it has a motor, or a ``ValueError``."""
+def check_joints(task: AbstractTask, joints: tuple[str, ...]) -> None:
+    """Check that a task's chain has the joint kinds ``joints`` and a motor (for a task's ``__check_init__``).
+
+    Raises:
+        ValueError: naming ``chain`` and the joints it must have, or that it has no actuated joint.
+    """
     cls = type(task).__name__
     if tuple(task.chain.joints) != joints:
         raise ValueError(f"{cls}.chain must have the joints {joints}, got {task.chain.joints}")

@@ -32,7 +32,7 @@ from jaxtyping import Array, ArrayLike, Float, PRNGKeyArray
 from lagrange import systems
 from lagrange.chain import Chain
 from lagrange.solvers import RK4
-from lagrange.tasks.base import AbstractTask, TaskState, _check_joints, _check_schedule, _Solver, wrap
+from lagrange.tasks.base import AbstractTask, TaskSolver, TaskState, check_joints, check_schedule, wrap
 
 __all__ = ["DiffRLCartpole", "POLE_INERTIA"]
 
@@ -62,7 +62,7 @@ class DiffRLCartpole(AbstractTask):
     dt: float = eqx.field(static=True, default=1.0 / 60.0, kw_only=True)
     horizon: int = eqx.field(static=True, default=240, kw_only=True)
     substeps: int = eqx.field(static=True, default=1, kw_only=True)
-    solver: _Solver = eqx.field(
+    solver: TaskSolver = eqx.field(
         static=True, default=RK4(), kw_only=True)
     noise_q: float = eqx.field(static=True, default=math.pi / 2, kw_only=True)
     noise_qd: float = eqx.field(static=True, default=0.25, kw_only=True)
@@ -71,8 +71,8 @@ class DiffRLCartpole(AbstractTask):
     name: ClassVar[str] = "diffrl_cartpole"
 
     def __check_init__(self):
-        _check_joints(self, ("prismatic", "revolute"))
-        _check_schedule(self)
+        check_joints(self, ("prismatic", "revolute"))
+        check_schedule(self)
         for field in ("noise_q", "noise_qd"):
             if not getattr(self, field) >= 0:
                 raise ValueError(f"DiffRLCartpole.{field} must be >= 0, got {getattr(self, field)!r}")

@@ -50,7 +50,7 @@ from jaxtyping import Array, ArrayLike, Float, PRNGKeyArray
 from lagrange import systems
 from lagrange.chain import Chain
 from lagrange.solvers import RK4
-from lagrange.tasks.base import AbstractTask, TaskState, _check_joints, _check_schedule, _Solver
+from lagrange.tasks.base import AbstractTask, TaskSolver, TaskState, check_joints, check_schedule
 
 __all__ = ["AbstractSwingup", "Acrobot", "Cartpole", "DoubleCartpole", "ChainSwingup", "PAPER_TASKS", "BODY_SETS"]
 
@@ -83,7 +83,7 @@ class AbstractSwingup(AbstractTask):
     horizon: int = eqx.field(static=True, default=500, kw_only=True)
     substeps: int = eqx.field(static=True, default=1, kw_only=True)
     noise: float = eqx.field(static=True, default=0.01, kw_only=True)
-    solver: _Solver = eqx.field(
+    solver: TaskSolver = eqx.field(
         static=True, default=RK4(), kw_only=True)
     upright: float = eqx.field(static=True, default=0.0, kw_only=True)
     starts: Float[Array, "K 2*n"] | None = eqx.field(default=None, kw_only=True)
@@ -91,7 +91,7 @@ class AbstractSwingup(AbstractTask):
 
     def __check_init__(self):
         cls = type(self).__name__
-        _check_schedule(self)
+        check_schedule(self)
         if not self.noise >= 0:
             raise ValueError(f"{cls}.noise must be >= 0, got {self.noise!r}")
         if not 0 <= float(self.upright) <= 1:
@@ -174,7 +174,7 @@ class Acrobot(AbstractSwingup):
     name: ClassVar[str] = "acrobot"
 
     def __check_init__(self):
-        _check_joints(self, ("revolute", "revolute"))
+        check_joints(self, ("revolute", "revolute"))
 
     @classmethod
     def rods(cls, **options) -> "Acrobot":
@@ -226,7 +226,7 @@ class Cartpole(AbstractSwingup):
     name: ClassVar[str] = "cartpole"
 
     def __check_init__(self):
-        _check_joints(self, ("prismatic", "revolute"))
+        check_joints(self, ("prismatic", "revolute"))
 
     @classmethod
     def rods(cls, **options) -> "Cartpole":
@@ -280,7 +280,7 @@ class DoubleCartpole(AbstractSwingup):
     name: ClassVar[str] = "double_cartpole"
 
     def __check_init__(self):
-        _check_joints(self, ("prismatic", "revolute", "revolute"))
+        check_joints(self, ("prismatic", "revolute", "revolute"))
 
     @classmethod
     def rods(cls, **options) -> "DoubleCartpole":

@@ -1,6 +1,6 @@
 """The swing-up tasks (lagrange/tasks/swingup.py, base.py, balance.py): resets, angle conventions, observations and
 rewards by hand, the integrator against Dopri8, energy conservation, the balanced criterion on synthetic
-trajectories, and the class structure (abstract bases, final tasks, body-set constructors)."""
+trajectories, the class structure (abstract bases, final tasks, body-set constructors), and the shapes a step takes."""
 
 import dataclasses
 import inspect
@@ -14,7 +14,8 @@ import pytest
 import lagrange as lg
 from lagrange import systems, tasks
 from lagrange.chain import Chain, Link
-from lagrange.tasks import Acrobot, Cartpole, ChainSwingup, DiffRLCartpole, DoubleCartpole
+from lagrange.tasks import Acrobot, Cartpole, ChainSwingup, DiffRLCartpole, DoubleCartpole, TaskState
+from tests.helpers import states_equal
 
 FINAL = (Acrobot, Cartpole, DoubleCartpole, ChainSwingup, DiffRLCartpole)
 
@@ -371,3 +372,24 @@ def test_trig_observation_is_continuous_through_hanging():
     np.testing.assert_allclose(a.observe(s), [np.sin(0.3), np.sin(-0.2), np.cos(0.3), np.cos(-0.2), 1.0, -2.0],
                                atol=1e-12)
     assert a.observation_size == 6
+
+
+def test_step_takes_one_state_and_one_action():
+    """A task's step takes one state and an action of shape (m,), refusing another shape by name (a (1, 1) action
+    once turned the state into a batch); batches go through ``jax.vmap``; an integer action is converted."""
+    task = Acrobot.rods()
+    s = task.reset(jax.random.PRNGKey(0))
+    for bad, shape in ((jnp.array([[0.3]]), r"\(1, 1\)"), (jnp.array(0.3), r"\(\)"), (jnp.zeros(2), r"\(2,\)")):
+        with pytest.raises(ValueError, match=rf"Acrobot\.step: action must have shape \(m,\) = \(1,\), one entry per "
+                                             rf"actuated joint, got {shape}; jax\.vmap the step"):
+            task.step(s, bad)
+    with pytest.raises(ValueError, match=r"Acrobot\.step: state\.q and state\.qd must have shape \(n,\) = \(2,\), got "
+                                         r"\(1, 2\) and \(1, 2\)"):
+        task.step(TaskState(s.q[None], s.qd[None]), jnp.array([0.3]))
+    with pytest.raises(TypeError, match=r"Acrobot\.step: action must hold real numbers in \[-1, 1\], got dtype bool"):
+        task.step(s, jnp.array([True]))
+    states = TaskState(jnp.stack([s.q, s.q]), jnp.stack([s.qd, s.qd]))
+    batch = jax.jit(jax.vmap(lambda s, a: task.step(s, a)))(states, jnp.array([[0.3], [1.0]]))
+    one = jax.jit(lambda s, a: task.step(s, a))
+    np.testing.assert_allclose(batch.q[1], one(s, jnp.array([1.0])).q, rtol=1e-14, atol=1e-15)
+    assert states_equal(one(s, jnp.array([1])), one(s, jnp.array([1.0])))
