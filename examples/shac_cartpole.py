@@ -17,8 +17,8 @@ import jax
 
 import optim
 from lagrange.tasks import DiffRLCartpole
-from optim.checkpoint import CheckpointError, write_json
-from optim.cli import learning_curve
+from optim.checkpoint import CheckpointError
+from optim.cli import learning_curve, prepare_run, write_results
 from policies import Actor
 
 CONFIG = optim.SHACConfig()  # the authors' cartpole swing-up settings
@@ -33,20 +33,22 @@ def main(argv=None) -> dict:
     p.add_argument("--eval-every", type=int, default=25, help="evaluate the deterministic policy every N epochs")
     p.add_argument("--out", default="runs/shac_cartpole", help="output folder")
     p.add_argument("--quick", action="store_true", help="a short demo run (150 epochs x 32 envs)")
-    p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.eqx if it exists")
+    p.add_argument("--resume", action="store_true", help="continue the run in OUT (its checkpoint.eqx)")
+    p.add_argument("--overwrite", action="store_true", help="start afresh in an OUT that holds a run")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = p.parse_args(argv)
 
+    if args.eval_every < 1:
+        raise SystemExit(f"--eval-every must be >= 1, got {args.eval_every}")
     cfg = QUICK if args.quick else CONFIG
     if args.iterations is not None:
         if args.iterations < 1:
             raise SystemExit(f"--iterations must be >= 1, got {args.iterations}")
         cfg = dataclasses.replace(cfg, iterations=args.iterations)
+    ckpt = prepare_run(args.out, cfg, resume=args.resume, overwrite=args.overwrite,
+                       iterations_given=args.iterations is not None, quick=args.quick)  # refuses to lose a run
     task = DiffRLCartpole.diffrl()
     actor = Actor.for_task(task, units=(64, 64), init_log_std=-1.0)  # the authors' actor
-    ckpt = os.path.join(args.out, "checkpoint.eqx")
-    if not args.resume and os.path.exists(ckpt):
-        os.remove(ckpt)
     print(f"SHAC on {task.name}: {cfg.iterations} epochs x {cfg.num_envs} envs x {cfg.short_horizon} steps "
           f"= {cfg.iterations * cfg.env_steps_per_epoch():.2e} env steps; writing to {args.out}")
     try:
@@ -61,7 +63,7 @@ def main(argv=None) -> dict:
                "env_steps": history[-1]["env_steps"], "epochs": cfg.iterations,
                "wall_clock_seconds": history[-1]["elapsed"], "seed": args.seed, "curve": run.curve,
                "config": dataclasses.asdict(cfg)}
-    write_json(os.path.join(args.out, "results.json"), results, indent=2)  # atomically: a kill leaves the old file
+    results = write_results(os.path.join(args.out, "results.json"), results)  # strict JSON, atomically
     learning_curve(history, run.curve, os.path.join(args.out, "learning_curve.png"),
                    title=f"SHAC on the authors' cartpole swing-up (seed {args.seed})")
     print(f"return {final['return']:.1f} +- {final['return_std']:.1f} over 16 episodes (untrained "

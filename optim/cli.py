@@ -1,13 +1,14 @@
 """The command-line driver the swing-up examples use: flags, training, evaluation and the artefacts.
 
-:func:`swingup_main` parses the flags (``--seed --iterations --out --resume --quick --no-progress --cpu-devices``, and
-``--bodies`` where the example offers several body sets), trains with :func:`optim.train` (a progress bar and an atomic
-checkpoint after every iteration; ``--resume`` continues it), evaluates the better of the best candidate and the CE
-mean, and writes to ``--out``:
+:func:`swingup_main` parses the flags (``--seed --iterations --out --resume --overwrite --quick --no-progress
+--cpu-devices``, and ``--bodies`` where the example offers several body sets), trains with :func:`optim.train` (a
+progress bar and an atomic checkpoint after every iteration; ``--resume`` continues it), evaluates the better of the
+best candidate and the CE mean, and writes to ``--out``:
 
 - ``checkpoint.eqx``: the training state with a JSON header (config, task and policy, seed, history), what ``--resume``
   reads;
-- ``results.json``: the evaluation's return, balance, env steps, wall-clock, seed and config;
+- ``results.json``: the evaluation's return, balance, env steps, wall-clock, seed and config (strict JSON: a
+  non-finite number is written as ``null``, and said so);
 - ``learning_curve.png``: the fitness against simulated steps (:func:`learning_curve`);
 - ``swingup.png``: one evaluation episode's angles, velocities and actuation (``lagrange.plotting``);
 - ``swingup.gif``: the same episode, animated.
@@ -26,6 +27,10 @@ swingup_main("Swing a cartpole up.", "runs/cartpole", CONFIG, CONFIG.with_iterat
              policy=lambda task: GRUPolicy.for_task(task, width=16))
 ```
 
+A folder that holds a run is never overwritten by accident: without ``--resume`` or ``--overwrite`` the driver refuses
+to start there (:func:`prepare_run`); with ``--overwrite`` the old checkpoint stays until the new run has written its
+first. Everything that can be checked before training (the flags, the folder) is checked before the first iteration.
+
 The pictures are drawn on ``matplotlib.figure.Figure`` (no ``pyplot``): no backend is chosen, no window opened.
 """
 
@@ -34,6 +39,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
+import sys
 from typing import Any, Callable
 
 import jax
@@ -42,26 +48,36 @@ import numpy as np
 from lagrange.plotting import episode_animation, episode_figure
 from lagrange.tasks import AbstractTask, balanced
 from optim.base import AlgorithmConfig, config_to_dict
-from optim.checkpoint import CheckpointError, write_json
+from optim.checkpoint import CheckpointError, check_writable, read_header, strict_json, write_json
 from optim.devices import cpu_core_count, use_cpu_cores
 from optim.episode import episode, evaluate
 from optim.train import train
 
-__all__ = ["EVAL_EPISODES", "swingup_parser", "swingup_main", "learning_curve"]
+__all__ = ["EVAL_EPISODES", "swingup_parser", "swingup_main", "prepare_run", "write_results", "learning_curve"]
 
 EVAL_EPISODES = 16
 """Episodes (random starts) of the final evaluation, and of the selection between the best candidate and the mean."""
 
 
 def swingup_parser(description: str, default_out: str, *, bodies: tuple[str, ...] = ()) -> argparse.ArgumentParser:
-    """The examples' flags; ``--bodies`` offers the body sets ``bodies`` (the first is the default) when there are
-    several."""
+    """The examples' flags.
+
+    Args:
+        description: the ``--help`` text's first line.
+        default_out: the default ``--out`` folder.
+        bodies: the body sets ``--bodies`` offers (the first is the default) when there are several.
+    """
     p = argparse.ArgumentParser(description=description, formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("--seed", type=int, default=0, help="PRNG seed (training and evaluation starts)")
     p.add_argument("--iterations", type=int, default=None,
                    help="iterations (default: the config's; a CE-APG schedule and warm-up compress to fit)")
     p.add_argument("--out", default=default_out, help="output folder")
-    p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.eqx if it exists")
+    p.add_argument("--resume", action="store_true",
+                   help="continue the run in OUT (its checkpoint.eqx) if there is one, with the flags it was started "
+                        "with")
+    p.add_argument("--overwrite", action="store_true",
+                   help="start afresh in an OUT that holds a run; its checkpoint is replaced when the new run has "
+                        "written its first (without --resume or --overwrite such an OUT is refused)")
     p.add_argument("--quick", action="store_true", help="a short demo run (about two minutes on two cores)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--cpu-devices", type=int, default=cpu_core_count(),
@@ -75,14 +91,28 @@ def swingup_parser(description: str, default_out: str, *, bodies: tuple[str, ...
 def swingup_main(description: str, default_out: str, config: AlgorithmConfig, quick: AlgorithmConfig, *,
                  tasks: dict[str, Callable[[], AbstractTask]], policy: Callable[[AbstractTask], Any],
                  paper_return: float | None = None, argv: list[str] | None = None) -> dict:
-    """Parse the flags (``argv``, default ``sys.argv[1:]``), train ``config`` (``quick`` with ``--quick``), evaluate,
-    write the artefacts to ``--out`` and return the contents of ``results.json``.
+    """Parse the flags, train ``config`` (``quick`` with ``--quick``), evaluate, write the artefacts to ``--out``.
 
-    ``tasks``: the task's constructor per body set, e.g. ``{"rods": Acrobot.rods, "brax_v1": Acrobot.brax_v1}`` (the
-    first is the default; ``--bodies`` chooses when there are several). They are called after the CPU devices are
-    set, as is ``policy(task)``, which builds the policy module (its architecture; the algorithm draws its weights).
-    ``paper_return``: the paper's CE-APG return, drawn on the learning curve and kept in ``results.json``.
-    Bad flags and a checkpoint that cannot be resumed exit with a one-line message (``SystemExit``)."""
+    Args:
+        description: the ``--help`` text's first line.
+        default_out: the default ``--out`` folder.
+        config: the algorithm's config of a full run.
+        quick: the config of ``--quick``.
+        tasks: the task's constructor per body set, e.g. ``{"rods": Acrobot.rods, "brax_v1": Acrobot.brax_v1}`` (the
+            first is the default; ``--bodies`` chooses when there are several). They are called after the CPU
+            devices are set, as is ``policy``.
+        policy: ``policy(task)`` builds the policy module (its architecture; the algorithm draws its weights).
+        paper_return: the paper's CE-APG return, drawn on the learning curve and kept in ``results.json``.
+        argv: the flags (default ``sys.argv[1:]``).
+
+    Returns:
+        The contents of ``results.json``.
+
+    Raises:
+        SystemExit: with a one-line message, before any training, for a bad flag, an ``--out`` that cannot be
+            written or that holds a run (without ``--resume`` or ``--overwrite``), and a checkpoint that cannot be
+            resumed; after training, if the training state turned NaN.
+    """
     if not tasks:
         raise ValueError("swingup_main: tasks must name at least one body set")
     args = swingup_parser(description, default_out, bodies=tuple(tasks)).parse_args(argv)
@@ -95,14 +125,12 @@ def swingup_main(description: str, default_out: str, config: AlgorithmConfig, qu
         # a CE-APG schedule and warm-up compress to fit
         cfg = cfg.with_iterations(args.iterations) if hasattr(cfg, "with_iterations") else dataclasses.replace(
             cfg, iterations=args.iterations)
+    ckpt = prepare_run(args.out, cfg, resume=args.resume, overwrite=args.overwrite,
+                       iterations_given=args.iterations is not None, quick=args.quick)
     use_cpu_cores(args.cpu_devices)  # before the first JAX computation
-    os.makedirs(args.out, exist_ok=True)
     bodies = getattr(args, "bodies", next(iter(tasks)))
     task = tasks[bodies]()
     pol = policy(task)
-    ckpt = os.path.join(args.out, "checkpoint.eqx")
-    if not args.resume and os.path.exists(ckpt):
-        os.remove(ckpt)
     steps = cfg.total_env_steps(task.horizon) if hasattr(cfg, "total_env_steps") else None
     print(f"{type(cfg).__name__.removesuffix('Config')} on {task.name} ({bodies}): {cfg.iterations} iterations"
           + (f", {steps:.2e} env steps" if steps else "") + f"; {len(jax.devices())} device(s); writing to {args.out}")
@@ -111,6 +139,8 @@ def swingup_main(description: str, default_out: str, config: AlgorithmConfig, qu
                        seed=args.seed, progress=not args.no_progress)
     except CheckpointError as err:
         raise SystemExit(f"error: cannot resume: {err}") from None
+    except FloatingPointError as err:
+        raise SystemExit(f"error: {err}") from None
     state, history, trainer = result.state, result.history, result.trainer
 
     # Ship the better of the best candidate and the CE mean, chosen on selection episodes, then evaluate
@@ -126,7 +156,7 @@ def swingup_main(description: str, default_out: str, config: AlgorithmConfig, qu
         selection[which] = float(np.mean(ev(select_key)[0]))
         rets, bal = ev(eval_key)
         evals[which] = (np.asarray(rets), np.asarray(bal), p, norm)
-    which = max(selection, key=selection.get)
+    which = max(selection, key=lambda w: selection[w] if np.isfinite(selection[w]) else -np.inf)
     rets, bal, p, norm = evals[which]
     ep = jax.jit(lambda k: episode(task, p, norm, k))(eval_key)
     results = {
@@ -151,7 +181,7 @@ def swingup_main(description: str, default_out: str, config: AlgorithmConfig, qu
         "paper_return": paper_return,
         "config": config_to_dict(cfg),
     }
-    write_json(os.path.join(args.out, "results.json"), results, indent=2)  # atomically: a kill leaves the old file
+    write_results(os.path.join(args.out, "results.json"), results)
     learning_curve(history, result.curve, os.path.join(args.out, "learning_curve.png"),
                    title=f"{type(cfg).__name__.removesuffix('Config')} on {task.name}", paper_return=paper_return)
     title = f"{task.name}: return {float(ep.ret):.0f}, balanced {bool(balanced(task, ep.q))}"
@@ -161,6 +191,80 @@ def swingup_main(description: str, default_out: str, config: AlgorithmConfig, qu
           f"({which} policy), balanced in {results['balanced_fraction']:.0%}; "
           f"{results['env_steps']:.2e} env steps, {results['wall_clock_seconds']:.0f} s")
     return results
+
+
+def prepare_run(out: str, config: AlgorithmConfig, *, resume: bool, overwrite: bool = False,
+                iterations_given: bool = False, quick: bool | None = None) -> str:
+    """Check the output folder of a run before any work, and return its checkpoint's path ``OUT/checkpoint.eqx``.
+
+    Args:
+        out: the ``--out`` folder (created if missing).
+        config: the config the run will train.
+        resume: ``--resume``: a checkpoint there is to be continued.
+        overwrite: ``--overwrite``: a run there may be replaced (its checkpoint is, once the new run has written its
+            first; its other files at the end).
+        iterations_given: whether ``--iterations`` was given: only then may a resume change the checkpoint's
+            iteration count (its learning-rate schedule spans the count, so the grown run mixes two schedules).
+        quick: whether ``--quick`` was given (for the message), None where there is no such flag.
+
+    Raises:
+        SystemExit: with a one-line message when ``out`` is a file or cannot be written; when it holds a run
+            (``checkpoint.eqx`` or ``results.json``) and neither ``resume`` nor ``overwrite`` is set; when both are;
+            and on a resume whose checkpoint is unreadable or has another iteration count than ``config`` while
+            ``iterations_given`` is false.
+    """
+    if resume and overwrite:
+        raise SystemExit("error: --resume continues the run in --out and --overwrite replaces it: give one")
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise SystemExit(f"error: --out {out!r} is a file; give a folder")
+    ckpt = os.path.join(out, "checkpoint.eqx")
+    try:
+        check_writable(ckpt, what="--out")
+    except ValueError as err:
+        raise SystemExit(f"error: {err}") from None
+    results = os.path.join(out, "results.json")
+    if not resume and not overwrite and (os.path.exists(ckpt) or os.path.exists(results)):
+        held = ", ".join(os.path.basename(f) for f in (ckpt, results) if os.path.exists(f))
+        raise SystemExit(f"error: --out {out!r} holds a run ({held}); --resume continues it, --overwrite replaces it, "
+                         f"or give another --out")
+    if resume and os.path.exists(ckpt):
+        try:
+            head = read_header(ckpt)
+        except CheckpointError as err:
+            raise SystemExit(f"error: cannot resume: {err}") from None
+        saved = (head.get("config") or {}).get("iterations")
+        if saved != config.iterations and not iterations_given:
+            hint = {True: "without --quick if it was a full run", False: "with --quick if it was a quick run",
+                    None: "with the flags it was started with"}[quick]
+            raise SystemExit(
+                f"error: cannot resume: {ckpt} is a run of {saved} iterations and these flags ask for "
+                f"{config.iterations}, whose learning-rate schedule differs: resume it {hint}; to change its length "
+                f"on a mixed schedule, pass --iterations {config.iterations} explicitly; or start afresh with "
+                f"--overwrite")
+    return ckpt
+
+
+def write_results(path: str, results: dict) -> dict:
+    """Write ``results`` atomically as strict JSON: a non-finite number (a NaN return) becomes ``null``, and a
+    warning on stderr names where.
+
+    Returns:
+        What was written.
+    """
+    clean = strict_json(results)
+    nulls = sorted(_null_paths(results, clean))
+    if nulls:
+        print(f"warning: {', '.join(nulls)} not finite (NaN or infinite): written as null in {path}", file=sys.stderr)
+    write_json(path, clean, indent=2, strict=True)  # atomically: a kill leaves the old file
+    return clean
+
+
+def _null_paths(raw, clean, prefix="") -> list[str]:
+    if isinstance(raw, dict):
+        return [p for k in raw for p in _null_paths(raw[k], clean[k], f"{prefix}{'.' if prefix else ''}{k}")]
+    if isinstance(raw, (list, tuple)):
+        return [p for i, (r, c) in enumerate(zip(raw, clean)) for p in _null_paths(r, c, f"{prefix}[{i}]")]
+    return [prefix] if raw is not None and clean is None else []
 
 
 def learning_curve(history: list[dict], curve: list[dict], path: str, *, title: str,

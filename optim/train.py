@@ -4,7 +4,7 @@ checkpoint after every iteration, resume, optional deterministic evaluations, an
 from __future__ import annotations
 
 import dataclasses
-import json
+import hashlib
 import os
 import time
 from typing import Any, Callable, NamedTuple
@@ -14,7 +14,7 @@ import numpy as np
 from jaxtyping import PRNGKeyArray
 
 from optim import checkpoint as ckpt
-from optim.base import AlgorithmConfig, Trainer, config_from_dict, config_to_dict
+from optim.base import AlgorithmConfig, Trainer, comparable_config, config_difference, config_from_dict, config_to_dict
 from optim.bptt import flatten_policy
 from optim.episode import evaluate
 
@@ -40,11 +40,49 @@ class TrainResult(NamedTuple):
 
 
 def describe(task, policy) -> dict:
-    """What a checkpoint records of the task and the policy, and a resume must match: their classes, the task's body
-    set, horizon and sizes, the policy's parameter count."""
+    """What a checkpoint records of the task and the policy, and a resume or :func:`load` must match.
+
+    Args:
+        task: the task trained on.
+        policy: the policy module.
+
+    Returns:
+        A JSON-able dict: the task's class, body set, horizon and sizes, the policy's class and parameter count, and
+        every field of the task and its chain under ``"task.<field>"`` (``"task.chain.mass"``, ``"task.dt"``,
+        ``"task.solver"``, ...): a number or string as it is, an array as its dtype, shape and values (a SHA-256 of
+        its bytes beyond 16 entries).
+    """
     return {"task": type(task).__name__, "bodies": getattr(task, "bodies", None), "horizon": int(task.horizon),
             "observation_size": int(task.observation_size), "action_size": int(task.action_size),
-            "policy": type(policy).__name__, "policy_parameters": int(flatten_policy(policy)[0].size)}
+            "policy": type(policy).__name__, "policy_parameters": int(flatten_policy(policy)[0].size),
+            **_fields(task, "task")}
+
+
+def _fields(obj, name: str) -> dict:
+    """``{name(.field)*: value}`` of ``obj``'s fields, recursively through modules, dataclasses and tuples."""
+    if obj is None or isinstance(obj, (bool, int, float, str)):
+        return {name: obj}
+    if isinstance(obj, (np.ndarray, np.generic, jax.Array)):
+        a = np.asarray(obj)
+        head = f"{a.dtype}{list(a.shape)}"
+        if a.size > 16:
+            return {name: f"{head} sha256 {hashlib.sha256(np.ascontiguousarray(a).tobytes()).hexdigest()[:16]}"}
+        return {name: f"{head} {a.ravel().tolist()}"}
+    if isinstance(obj, (tuple, list)):
+        return {k: v for i, item in enumerate(obj) for k, v in _fields(item, f"{name}[{i}]").items()}
+    if dataclasses.is_dataclass(obj):
+        out = {name: type(obj).__name__}
+        for f in dataclasses.fields(obj):
+            out.update(_fields(getattr(obj, f.name), f"{name}.{f.name}"))
+        return out
+    return {name: type(obj).__qualname__}
+
+
+def _identity_difference(saved: dict, identity: dict, *, now_as: str) -> str:
+    """The identity fields that differ; a task field (``task.*``) a checkpoint written before such fields were
+    recorded lacks is not compared."""
+    now = {k: v for k, v in identity.items() if k in saved or not k.startswith("task.")}
+    return config_difference(saved, now, saved_as="checkpoint", now_as=now_as)
 
 
 def train(config: AlgorithmConfig, task, policy, key: PRNGKeyArray, *, checkpoint: str | os.PathLike | None = None,
@@ -68,6 +106,8 @@ def train(config: AlgorithmConfig, task, policy, key: PRNGKeyArray, *, checkpoin
 
     if eval_every is not None and (isinstance(eval_every, bool) or not isinstance(eval_every, int) or eval_every < 1):
         raise ValueError(f"train: eval_every must be None or an integer >= 1, got {eval_every!r}")
+    if checkpoint is not None:  # before any work: a path that cannot be written would fail after the first iteration
+        ckpt.check_writable(checkpoint)
     trainer = config.make_trainer(task, policy, objective=objective)
     iterations = config.iterations
     cfg_dict = config_to_dict(config)
@@ -101,14 +141,20 @@ def train(config: AlgorithmConfig, task, policy, key: PRNGKeyArray, *, checkpoin
     for it in range(start, iterations):
         t0 = time.perf_counter()
         state, metrics = trainer.update(state)
-        metrics = {k: float(v) for k, v in jax.device_get(metrics).items()}
+        metrics = _host_metrics(jax.device_get(metrics))
         elapsed += time.perf_counter() - t0
         env_steps += metrics.pop("env_steps")
         metrics.update(iteration=it + 1, env_steps=env_steps, elapsed=elapsed)
+        bad = ckpt.nan_leaves(state)
+        if bad:  # never checkpointed: the last checkpoint keeps the iteration before
+            raise FloatingPointError(
+                f"train: iteration {it + 1} left a NaN in the training state ({', '.join(bad)}); "
+                + (f"{os.fspath(checkpoint)} keeps iteration {it}. " if checkpoint is not None else "")
+                + "Look for a non-finite observation, reward or parameter in the task and the policy")
         history.append(metrics)
-        if metrics.get("nonfinite", 0):
-            bar.write(f"iteration {it + 1}: {int(metrics['nonfinite'])} update(s) or candidate(s) went non-finite "
-                      f"(skipped, or fitness -inf)")
+        note = _nonfinite_note(metrics)
+        if note:
+            bar.write(f"iteration {it + 1}: {note}")
         if eval_every is not None and ((it + 1) % eval_every == 0 or it + 1 == iterations):
             evaluate_now(it + 1)
         if checkpoint is not None and jax.process_index() == 0:  # one writer when several hosts run the program
@@ -123,33 +169,59 @@ def train(config: AlgorithmConfig, task, policy, key: PRNGKeyArray, *, checkpoin
     return TrainResult(state, history, curve, trainer)
 
 
+def _host_metrics(metrics: dict) -> dict:
+    """An iteration's metrics for the history: scalars as floats, a boolean mask over the population members as the
+    list of the members' indices where it is true."""
+    out = {}
+    for k, v in metrics.items():
+        v = np.asarray(v)
+        out[k] = np.flatnonzero(v).tolist() if v.ndim else float(v)
+    return out
+
+
+def _nonfinite_note(metrics: dict) -> str:
+    """What went non-finite in an iteration, naming the members, or ``""``."""
+    parts = []
+    if metrics.get("nonfinite", 0):
+        parts.append(f"{int(metrics['nonfinite'])} update(s) or candidate(s) went non-finite (skipped, or fitness "
+                     f"-inf)")
+        if metrics.get("nonfinite_members"):
+            parts[-1] += f"; members (candidates or runs, from 0): {metrics['nonfinite_members']}"
+    if metrics.get("nonfinite_envs"):
+        parts.append(f"environments {metrics['nonfinite_envs']} went non-finite and restarted")
+    return "; ".join(parts)
+
+
+def _check_iterations(path, state, head: dict) -> None:
+    """The iteration counter of a checkpoint's state agrees with its header and its history."""
+    done = int(state.iteration)
+    history = head.get("history")
+    if done < 0 or head.get("iteration", done) != done or (isinstance(history, list) and len(history) != done):
+        raise ckpt.CheckpointError(
+            f"{path} has an inconsistent iteration count (state {done}, header {head.get('iteration')!r}, history of "
+            f"{len(history) if isinstance(history, list) else None} iterations; all must be the same integer >= 0). "
+            f"Start the run afresh without resume")
+
+
 def _resume(path, like, config: AlgorithmConfig, identity: dict, seed):
     head = ckpt.read_header(path)
     saved = head.get("config")
     if not isinstance(saved, dict):
         raise ckpt.CheckpointError(f"{path} has no config in its header")
-    want = _comparable_config(config, saved)
+    want = comparable_config(config, saved)
     want["iterations"] = saved.get("iterations")  # the iteration count may grow on resume
     # config, task/policy and seed first: a state of another shape would otherwise read as a corrupt file
     if saved != want:
-        detail = ckpt.config_difference(saved, want, saved_as="checkpoint", now_as="requested")
+        detail = config_difference(saved, want, saved_as="checkpoint", now_as="requested")
         raise ckpt.CheckpointError(f"{path} was written with a different config ({detail})")
-    if head.get("identity") != identity:
-        detail = ckpt.config_difference(head.get("identity") or {}, identity, saved_as="checkpoint",
-                                        now_as="requested")
+    detail = _identity_difference(head.get("identity") or {}, identity, now_as="requested")
+    if detail:
         raise ckpt.CheckpointError(f"{path} was written for another task or policy ({detail})")
     if seed is not None and head.get("seed") != seed:
         raise ckpt.CheckpointError(f"{path} was written with seed {head.get('seed')!r}, requested seed {seed}")
-    return ckpt.load(path, like, config=want)
-
-
-def _comparable_config(cfg: AlgorithmConfig, saved: dict) -> dict:
-    """``cfg`` as a JSON dict to compare with a ``saved`` one: a field added to the config class since ``saved`` was
-    written is left out while it has its default (so older checkpoints of this format stay valid)."""
-    config = config_to_dict(cfg)
-    defaults = json.loads(json.dumps({f.name: f.default for f in dataclasses.fields(cfg)
-                                     if f.default is not dataclasses.MISSING}))
-    return {k: v for k, v in config.items() if k in saved or k not in defaults or v != defaults[k]}
+    state, head = ckpt.load(path, like, config=want)
+    _check_iterations(path, state, head)
+    return state, head
 
 
 def load(path: str | os.PathLike, task, policy, *, objective: Callable | None = None):
@@ -162,9 +234,9 @@ def load(path: str | os.PathLike, task, policy, *, objective: Callable | None = 
     except (TypeError, ValueError) as err:
         raise ckpt.CheckpointError(f"{path}: its config cannot be rebuilt ({err})") from None
     trainer = config.make_trainer(task, policy, objective=objective)
-    identity = describe(trainer.task, policy)
-    if head.get("identity") != identity:
-        detail = ckpt.config_difference(head.get("identity") or {}, identity, saved_as="checkpoint", now_as="given")
+    detail = _identity_difference(head.get("identity") or {}, describe(trainer.task, policy), now_as="given")
+    if detail:
         raise ckpt.CheckpointError(f"{path} was written for another task or policy ({detail})")
     state, head = ckpt.load(path, trainer.init(jax.random.PRNGKey(0)))
+    _check_iterations(path, state, head)
     return trainer, state, head

@@ -191,6 +191,31 @@ def test_nonfinite_candidates_get_minus_infinity_and_do_not_poison(capsys):
     assert metrics["nonfinite"] == 4 and metrics["best_return"] == -np.inf
     assert bool(jnp.all(jnp.isfinite(state.mean))) and bool(jnp.all(jnp.isfinite(state.std)))
     assert "iteration 1: 4 update(s) or candidate(s) went non-finite" in capsys.readouterr().out
+    assert metrics["nonfinite_members"] == [0, 1, 2, 3]
+
+
+def test_the_candidates_that_go_nonfinite_are_named(capsys):
+    """Which member of the vmapped population went non-finite: the metrics and the message name the candidates
+    (here those whose first action is positive, made NaN by the objective), found again by hand from the keys."""
+    task = pendulum_swingup(horizon=5)
+    policy = tiny_mlp(task)
+    cfg = optim.CEAPGConfig(num_candidates=6, num_elites=2, iterations=1, apg_steps=0, episodes=1, fitness_window=1,
+                            init_std=1.0, normalize=False)
+
+    def objective(eps):
+        return jnp.where(eps.actions[0, 0, 0] > 0, jnp.nan, -jnp.mean(eps.ret))
+
+    key = jax.random.PRNGKey(3)
+    result = optim.train(cfg, task, policy, key, objective=objective, progress=False)
+    flat, unravel = optim.flatten_policy(policy)
+    k_eps, k_run = jax.random.split(jax.random.fold_in(key, 0))
+    thetas = 1.0 * jax.random.normal(k_eps, (6, flat.size), flat.dtype)
+    first = [float(optim.episode(task, unravel(t), None, jax.random.split(k, 1)[0]).actions[0, 0])
+             for t, k in zip(thetas, jax.random.split(k_run, 6))]
+    named = result.history[0]["nonfinite_members"]
+    assert named == [i for i, a in enumerate(first) if a > 0] and 0 < len(named) < 6
+    assert result.history[0]["nonfinite"] == len(named) and bool(jnp.all(jnp.isfinite(result.state.mean)))
+    assert f"members (candidates or runs, from 0): {named}" in capsys.readouterr().out
 
 
 @functools.cache

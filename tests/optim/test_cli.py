@@ -1,8 +1,11 @@
-"""optim.cli, the examples' driver, in process: its flags and their defaults; bad flags and a checkpoint of another run
-refused in one line before any training; a tiny run (1 iteration on 5-step episodes) that writes every artefact, whose
-results are the evaluation of the policy its checkpoint holds; and the learning curve
-drawn from a CE-APG history and from a SHAC history with deterministic evaluations."""
+"""optim.cli, the examples' driver, in process: its flags and their defaults; bad flags, an --out that cannot be
+written and a checkpoint of another run refused in one line before any training; a tiny run (1 iteration on 5-step
+episodes) that writes every artefact, whose results are the evaluation of the policy its checkpoint holds; a folder
+that holds a run never overwritten without --overwrite, nor resumed on another schedule without an explicit
+--iterations; strict JSON results (a NaN written as null, and said so); and the learning curve drawn from a CE-APG
+history and from a SHAC history with deterministic evaluations."""
 
+import dataclasses
 import json
 
 import jax
@@ -13,7 +16,7 @@ import optim
 import lagrange as lg
 from lagrange.tasks import ChainSwingup
 from optim.base import config_to_dict
-from optim.cli import EVAL_EPISODES, learning_curve, swingup_main, swingup_parser
+from optim.cli import EVAL_EPISODES, learning_curve, prepare_run, swingup_main, swingup_parser, write_results
 from policies import GRUPolicy
 
 CFG = optim.CEAPGConfig(num_candidates=4, num_elites=2, iterations=1, apg_steps=1, episodes=1, fitness_window=1)
@@ -36,8 +39,8 @@ def main(out, *flags):
 
 def test_parser_defaults_and_bodies():
     args = swingup_parser("d", "runs/x", bodies=("rods", "brax_v1")).parse_args([])
-    assert (args.seed, args.iterations, args.out, args.resume, args.quick, args.no_progress, args.bodies) == \
-        (0, None, "runs/x", False, False, False, "rods")
+    assert (args.seed, args.iterations, args.out, args.resume, args.overwrite, args.quick, args.no_progress,
+            args.bodies) == (0, None, "runs/x", False, False, False, False, "rods")
     assert args.cpu_devices >= 1
     assert swingup_parser("d", "runs/x", bodies=("rods", "brax_v1")).parse_args(["--bodies", "brax_v1"]).bodies == \
         "brax_v1"
@@ -48,11 +51,17 @@ def test_parser_defaults_and_bodies():
 
 
 @pytest.mark.parametrize("flags, message", [(["--iterations", "0"], "--iterations must be >= 1, got 0"),
-                                            (["--cpu-devices", "0"], "--cpu-devices must be >= 1, got 0")])
+                                            (["--cpu-devices", "0"], "--cpu-devices must be >= 1, got 0"),
+                                            (["--resume", "--overwrite"], "--resume continues .* give one")])
 def test_bad_flags_exit_with_one_line(tmp_path, flags, message):
     with pytest.raises(SystemExit, match=message):
         main(tmp_path / "run", *flags)
     assert not (tmp_path / "run").exists()  # refused before anything was written
+    (tmp_path / "file").write_text("x")
+    for out, message in ((tmp_path / "file", r"--out '.*file' is a file; give a folder"),
+                         (tmp_path / "file" / "run", r"--out '.*checkpoint.eqx' cannot be written: its folder .* is not")):
+        with pytest.raises(SystemExit, match=message):
+            main(out, "--out", str(out))
     with pytest.raises(ValueError, match="tasks must name at least one body set"):
         swingup_main("d", str(tmp_path), CFG, CFG, tasks={}, policy=policy, argv=[])
 
@@ -82,6 +91,33 @@ def test_tiny_run_writes_every_artefact(tmp_path):
         main(out, "--out", str(out), "--seed", "3", "--resume", "--iterations", "2")
     with pytest.raises(SystemExit, match=r"cannot resume: .*num_candidates: checkpoint 4, requested 2"):
         main(out, "--out", str(out), "--bodies", "brax_v1", "--seed", "3", "--resume", "--quick", "--iterations", "2")
+    # the folder holds a run: a new one without --resume or --overwrite is refused, the checkpoint left as it was
+    before = (out / "checkpoint.eqx").read_bytes()
+    with pytest.raises(SystemExit, match=r"holds a run \(checkpoint.eqx, results.json\); --resume continues it, "
+                                         r"--overwrite replaces it"):
+        main(out, "--out", str(out), "--bodies", "brax_v1", "--seed", "3")
+    assert (out / "checkpoint.eqx").read_bytes() == before
+    assert prepare_run(str(out), CFG, resume=False, overwrite=True) == str(out / "checkpoint.eqx")  # and kept
+    assert (out / "checkpoint.eqx").read_bytes() == before
+    # a resume on another length (a --quick run continued without --quick) would mix two learning-rate schedules
+    longer = dataclasses.replace(CFG, iterations=3)
+    with pytest.raises(SystemExit, match=r"is a run of 1 iterations and these flags ask for 3, whose learning-rate "
+                                         r"schedule differs: resume it with --quick if it was a quick run; .* pass "
+                                         r"--iterations 3 explicitly; or start afresh with --overwrite"):
+        swingup_main("d", str(out), longer, QUICK, tasks=TASKS, policy=policy, argv=["--resume", "--bodies", "brax_v1"])
+    with pytest.raises(SystemExit, match=r"resume it without --quick if it was a full run"):
+        prepare_run(str(out), longer, resume=True, quick=True)
+
+
+def test_results_are_strict_json(tmp_path, capsys):
+    """A return that is NaN (a policy whose evaluation blew up) is written as null, and a warning names it."""
+    path = tmp_path / "results.json"
+    written = write_results(str(path), {"return": float("nan"), "by": {"best": float("-inf"), "mean": 1.5},
+                                        "curve": [{"return": float("inf")}], "seed": 0})
+    assert written == {"return": None, "by": {"best": None, "mean": 1.5}, "curve": [{"return": None}], "seed": 0}
+    assert json.loads(path.read_text(), parse_constant=lambda c: pytest.fail(f"not strict JSON: {c}")) == written
+    err = capsys.readouterr().err
+    assert "by.best, curve[0].return, return not finite (NaN or infinite): written as null" in err
 
 
 def _drawn(monkeypatch, tmp_path, history, curve, **kw):

@@ -7,8 +7,11 @@ count (the new config's schedule applies from there) but not shrink it below wha
 test_checkpoint.py.)"""
 
 import dataclasses
+import json
+from typing import NamedTuple
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -16,7 +19,7 @@ import optim
 from optim import checkpoint
 from optim.train import describe
 from tests.helpers import (ALGORITHMS, EVAL_KEY, EVALUATED, RUN_KEY, RUN_SEED, small_problem, states_equal,
-                           tiny_acrobot, tiny_gru)
+                           tiny_acrobot, tiny_gru, tiny_mlp)
 
 
 def _without_elapsed(history):
@@ -59,10 +62,21 @@ def test_every_algorithm_trains_through_train(name, short_run):
 
 
 def test_describe_names_the_task_and_the_policy():
+    """The task's and policy's classes and sizes, and every field of the task and its chain, by name: a number as it
+    is, an array as its dtype, shape and values (a digest beyond 16 entries), a solver as its class and fields."""
     task = tiny_acrobot(trig=True)
-    assert describe(task, tiny_gru(task, width=8)) == {
+    identity = describe(task, tiny_gru(task, width=8))
+    assert {k: v for k, v in identity.items() if not k.startswith("task.")} == {
         "task": "Acrobot", "bodies": "rods", "horizon": 20, "observation_size": 6, "action_size": 1,
         "policy": "GRUPolicy", "policy_parameters": optim.flatten_policy(tiny_gru(task, width=8))[0].size}
+    assert identity["task.chain"] == "Chain" and identity["task.chain.mass"] == "float64[2] [2.5, 2.5]"
+    assert identity["task.chain.gear"] == "float64[1] [25.0]" and identity["task.chain.joints[1]"] == "revolute"
+    assert (identity["task.dt"], identity["task.noise"], identity["task.substeps"]) == (0.01, 0.01, 1)
+    assert identity["task.solver"] == "RK4" and identity["task.trig"] is True and identity["task.starts"] is None
+    starts = np.linspace(0.0, 1.0, 40).reshape(10, 4)
+    with_starts = describe(tiny_acrobot(starts=starts), tiny_gru(task))["task.starts"]
+    assert with_starts.startswith("float64[10, 4] sha256 ") and len(with_starts.split()[-1]) == 16
+    assert json.loads(json.dumps(identity)) == identity  # what a checkpoint header holds, unchanged
 
 
 def _interrupt_after(monkeypatch, iteration):
@@ -98,7 +112,8 @@ def test_interrupted_and_resumed_runs(name, short_run, tmp_path, monkeypatch):
     state, history = first.trainer.init(RUN_KEY), []
     for trainer in (first.trainer, first.trainer, resumed.trainer, resumed.trainer):
         state, metrics = trainer.update(state)
-        history.append({k: float(v) for k, v in metrics.items() if k != "env_steps"})
+        history.append({k: np.flatnonzero(v).tolist() if np.ndim(v) else float(v) for k, v in metrics.items()
+                        if k != "env_steps"})
     assert int(resumed.state.iteration) == 4 and states_equal(resumed.state, state)
     assert [h["env_steps"] for h in resumed.history] == [steps * i for i in (1, 2, 3, 4)]
     np.testing.assert_equal([{k: h[k] for k in history[0]} for h in resumed.history], history)
@@ -119,3 +134,31 @@ def test_train_refuses_bad_eval_every(eval_every):
     cfg, task, policy, _ = small_problem("APGConfig")
     with pytest.raises(ValueError, match="eval_every must be None or an integer >= 1"):
         optim.train(cfg, task, policy, jax.random.PRNGKey(0), eval_every=eval_every, progress=False)
+
+
+def test_a_nan_in_the_training_state_stops_the_run_before_it_is_checkpointed(tmp_path):
+    """An update that leaves a NaN in the state (a bug, or a task that returns NaN without an error) is never
+    written: the run stops naming the leaf, and its checkpoint keeps the iteration before."""
+
+    class State(NamedTuple):
+        x: jax.Array
+        iteration: jax.Array
+
+    @dataclasses.dataclass(frozen=True)
+    class Breaks(optim.AlgorithmConfig):
+        iterations: int = 3
+
+        def make_trainer(self, task, policy, *, objective=None):
+            def update(state):
+                x = jnp.where(state.iteration == 1, jnp.nan, state.x + 1.0)
+                return State(x, state.iteration + 1), {"env_steps": 1.0, "nonfinite": 0}
+
+            return optim.Trainer(lambda key: State(jnp.zeros(2), jnp.asarray(0)), jax.jit(update),
+                                 lambda state, which="best": (policy, None), task, self)
+
+    task = tiny_acrobot()
+    path = tmp_path / "run.eqx"
+    with pytest.raises(FloatingPointError, match=r"iteration 2 left a NaN in the training state \(\.x\); .*"
+                                                 r"run\.eqx keeps iteration 1"):
+        optim.train(Breaks(), task, tiny_mlp(task), RUN_KEY, checkpoint=path, progress=False)
+    assert checkpoint.read_header(path)["iteration"] == 1
