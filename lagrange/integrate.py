@@ -47,6 +47,9 @@ class Trajectory(eqx.Module):
 def _check_dt(dt):
     if isinstance(dt, jax.core.Tracer):
         return
+    kind = np.asarray(dt).dtype if hasattr(dt, "dtype") or isinstance(dt, (bool, complex)) else None
+    if isinstance(dt, bool) or kind == np.bool_ or (kind is not None and np.issubdtype(kind, np.complexfloating)):
+        raise TypeError(f"dt must be a positive real number of seconds, got {dt!r}")
     try:
         v = float(dt)
     except (TypeError, ValueError) as err:
@@ -58,6 +61,27 @@ def _check_dt(dt):
 def _check_substeps(substeps):
     if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
         raise ValueError(f"substeps must be an integer >= 1, got {substeps!r}")
+
+
+def _check_steps(steps):
+    if steps is not None and (isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1):
+        raise ValueError(f"steps must be None or an integer >= 1 (the number of control intervals), got {steps!r}")
+
+
+def _float_dtype(chain: Chain, *arrays):
+    """The float dtype a rollout runs in: the chain's parameters' promoted with that of every floating input."""
+    leaves = [x for x in jax.tree_util.tree_leaves(chain) if eqx.is_inexact_array(x)]
+    floats = [x.dtype for x in arrays if x is not None and jnp.issubdtype(x.dtype, jnp.floating)]
+    return jnp.result_type(*[x.dtype for x in leaves], *floats) if leaves or floats else jnp.result_type(float)
+
+
+def _real_array(name: str, x):
+    """``x`` as an array, refusing booleans and complex numbers by name."""
+    x = jnp.asarray(x)
+    if x.dtype == jnp.bool_ or jnp.issubdtype(x.dtype, jnp.complexfloating):
+        raise TypeError(f"{name} must hold real numbers (integers or floats, converted to the chain's float dtype), "
+                        f"got dtype {x.dtype}")
+    return x
 
 
 def _needed_stages(tableau) -> list[bool]:
@@ -100,6 +124,8 @@ def _symplectic_euler_step(chain: Chain, iterations: int, h, q, qd, u):
     M = mass_matrix(chain, q)
     p = jnp.einsum("...ij,...j->...i", M, qd)
     force = -gravity_forces(chain, q)
+    if chain.stiffness is not None:  # the joint springs, a potential force like gravity
+        force = force - chain.stiffness * (q - chain.springref)
     if u is not None and chain.m:
         force = force + jnp.einsum("ij,...j->...i", actuation_matrix(chain), u)
     A = M if chain.damping is None else M + h * jnp.diag(chain.damping)
@@ -214,16 +240,20 @@ def simulate(
 
     Args:
         chain: the :class:`~lagrange.chain.Chain`.
-        q0, qd0: initial joint coordinates [rad or m] and velocities [rad/s or m/s], shape ``(n,)``.
-        controls: an array ``(T, m)`` held constant over each interval, or a policy
+        q0, qd0: initial joint coordinates [rad or m] and velocities [rad/s or m/s], shape ``(n,)``; integers and
+            lower-precision floats are converted to the chain's float dtype, booleans and complex numbers refused.
+        controls: an array ``(T >= 1, m)`` held constant over each interval, or a policy
             ``controls(t, q, qd) -> u`` of shape ``(m,)`` evaluated at each interval's start
             (then ``steps=T`` is required). ``None`` for an unactuated chain (with ``steps``).
         dt: control interval [s], > 0.
         solver: a solver instance from :mod:`lagrange.solvers` (default :class:`RK4`).
-        substeps: fixed solver steps per interval (the initial step when adaptive).
+        substeps: fixed solver steps per interval (the initial step when adaptive), an integer >= 1.
+        steps: ``T``, the number of control intervals, an integer >= 1: required with a policy callable or
+            ``controls=None``; with an array it must equal its length, or be None.
         adjoint: ``None`` for direct reverse-mode through the unrolled steps, or a diffrax
             adjoint to run every interval through ``diffrax.diffeqsolve``.
         rtol, atol: give both for adaptive steps (embedded-error solvers only).
+        max_steps: with adaptive steps, the most solver steps one control interval may take.
         check: raise (``eqx.error_if``) if the final state is not finite, which also reports a
             mass matrix met singular on the way.
         checkpoint: with fixed steps and ``adjoint=None``, recompute each interval's
@@ -234,6 +264,10 @@ def simulate(
         A :class:`Trajectory` with ``t``, ``q``, ``qd`` of leading length ``T + 1`` and ``u``.
 
     Raises:
+        ValueError: a shape that does not match the chain, ``T`` or ``steps`` < 1 or not an integer, ``dt <= 0``,
+            ``substeps < 1``, or an unknown solver setting, naming the argument.
+        TypeError: a ``dt`` that is not a real number (a bool included), boolean or complex ``q0``, ``qd0`` or
+            controls.
         equinox.EquinoxRuntimeError: (when run, with ``check=True``) if the final state is not finite.
     """
     if not isinstance(chain, Chain):
@@ -241,8 +275,13 @@ def simulate(
     check_solver(solver)
     _check_dt(dt)
     _check_substeps(substeps)
-    q0, qd0 = jnp.asarray(q0), jnp.asarray(qd0)
+    _check_steps(steps)
+    q0, qd0 = _real_array("q0", q0), _real_array("qd0", qd0)
     _check_state(chain, q0, qd0)
+    arrays = not callable(controls) and controls is not None
+    us = _real_array("controls", controls) if arrays else None
+    dtype = _float_dtype(chain, q0, qd0, us)
+    q0, qd0 = q0.astype(dtype), qd0.astype(dtype)
     interval = _interval(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps)
     if checkpoint and adjoint is None and rtol is None and atol is None:
         interval = jax.checkpoint(interval)
@@ -254,9 +293,10 @@ def simulate(
 
         def body(carry, k):
             q, qd = carry
-            u = jnp.asarray(policy(k * dt, q, qd))
+            u = _real_array("the policy's u", policy(k * dt, q, qd))
             if u.shape != (chain.m,):
                 raise ValueError(f"the policy must return u of shape ({chain.m},), got {u.shape}")
+            u = u.astype(dtype)
             out = interval(q, qd, u)
             return out, (out, u)
 
@@ -265,10 +305,13 @@ def simulate(
         if controls is None:
             if steps is None:
                 raise ValueError("controls=None needs steps (the number of intervals, an int >= 1)")
-            controls = jnp.zeros((steps, chain.m), q0.dtype)
-        us = jnp.asarray(controls)
+            us = jnp.zeros((steps, chain.m), dtype)
         if us.ndim != 2 or us.shape[1] != chain.m:
             raise ValueError(f"controls must have shape (T, {chain.m}) for this chain, got {us.shape}")
+        if us.shape[0] < 1:
+            raise ValueError(f"controls must hold at least one control interval: shape (T >= 1, {chain.m}), got "
+                             f"{us.shape}")
+        us = us.astype(dtype)
         if steps is not None and steps != us.shape[0]:
             raise ValueError(f"steps={steps} disagrees with controls of length {us.shape[0]}")
 
@@ -317,16 +360,27 @@ def step(
     Args:
         chain: the :class:`~lagrange.chain.Chain`.
         q, qd: joint coordinates [rad or m] and velocities [rad/s or m/s], shape ``(*batch, n)``
-            (leading batch dimensions for fixed-step solvers only).
+            (leading batch dimensions for fixed-step solvers only); converted as for :func:`simulate`.
         u: controls, shape ``(*batch, m)``; ``None`` for no control.
         dt, solver, substeps, adjoint, rtol, atol, max_steps: as for :func:`simulate`.
 
     Returns:
         The new ``(q, qd)``, each of shape ``(*batch, n)``.
 
+    Raises:
+        ValueError, TypeError: as :func:`simulate`'s, naming the argument.
+
     Pure and cheap: it does not check for non-finite values (see :func:`simulate`).
     """
     check_solver(solver)
     _check_dt(dt)
     _check_substeps(substeps)
+    q, qd = _real_array("q", q), _real_array("qd", qd)
+    u = None if u is None else _real_array("u", u)
+    if q.ndim < 1 or q.shape[-1] != chain.n or qd.shape != q.shape:
+        raise ValueError(f"q and qd must have the same shape (*batch, n = {chain.n}), got {q.shape} and {qd.shape}")
+    if u is not None and (u.ndim < 1 or u.shape[-1] != chain.m):
+        raise ValueError(f"u must have shape (*batch, m = {chain.m}) for this chain, got {u.shape}")
+    dtype = _float_dtype(chain, q, qd, u)
+    q, qd, u = q.astype(dtype), qd.astype(dtype), None if u is None else u.astype(dtype)
     return _interval(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps)(q, qd, u)

@@ -66,14 +66,30 @@ class BraxEnv(Env):
         self._dtype = jnp.result_type(task.chain.mass)
 
     def reset(self, rng: jax.Array) -> State:
+        """The task's random start drawn with one PRNG key ``rng`` (Brax's ``VmapWrapper`` vmaps over a batch of
+        keys). Raises ``ValueError`` for a batch of keys."""
+        typed = jax.dtypes.issubdtype(getattr(rng, "dtype", None) or jnp.result_type(rng), jax.dtypes.prng_key)
+        one = () if typed else jnp.shape(jax.random.PRNGKey(0))
+        if jnp.shape(rng) != one:
+            raise ValueError(f"BraxEnv.reset: rng must be one PRNG key, of shape {one}, got shape {jnp.shape(rng)}; "
+                             f"jax.vmap the reset over a batch of keys")
         s = self.task.reset(rng)
         zero = jnp.zeros((), self._dtype)
         ps = PipelineState(s.q, s.qd, jnp.zeros((), jnp.int32))
         return State(ps, self.task.observe(s).astype(self._dtype), zero, zero, {}, {})
 
     def step(self, state: State, action: jax.Array) -> State:
+        """One control interval of the task under ``action``, shape ``(action_size,)`` in ``[-1, 1]`` (Brax's
+        ``VmapWrapper`` vmaps the step over a batch). Raises ``ValueError`` for another shape, ``TypeError`` for a
+        boolean or complex action."""
         ps = state.pipeline_state
         s = TaskState(ps.q, ps.qd)
+        if jnp.shape(action) != (self.action_size,):
+            raise ValueError(f"BraxEnv.step: action must have shape (action_size,) = ({self.action_size},), got "
+                             f"{jnp.shape(action)}; jax.vmap the step (Brax's VmapWrapper) over a batch")
+        kind = jnp.result_type(action)
+        if kind == jnp.bool_ or jnp.issubdtype(kind, jnp.complexfloating):
+            raise TypeError(f"BraxEnv.step: action must hold real numbers in [-1, 1], got dtype {kind}")
         action = jnp.asarray(action, self._dtype)
         s2 = self.task.step(s, action)
         reward = jnp.asarray(self.task.reward(s, action, s2), self._dtype)

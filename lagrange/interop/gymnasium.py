@@ -37,7 +37,10 @@ class GymEnv(gym.Env):
       from the environment's ``np_random`` (so a seed reproduces the episode).
     - ``step(action) -> (obs, reward, terminated, truncated, info)``: ``terminated`` is always False (the
       tasks never end early); ``truncated`` becomes True after ``task.horizon`` steps. ``info`` holds the
-      coordinates ``q`` and velocities ``qd`` (float64 NumPy arrays).
+      coordinates ``q`` and velocities ``qd`` (float64 NumPy arrays). The action must be a finite real array of
+      shape ``(action_size,)``: None, NaN or another shape raise ``ValueError`` and leave the state as it was. A
+      state that turns non-finite (the simulation blew up) ends the episode: ``truncated`` is True and
+      ``info["nonfinite"]`` is True, and ``step`` refuses to go on until ``reset``.
     - ``render()`` (``render_mode="rgb_array"``): an RGB frame (H, W, 3) uint8 of the chain drawn from
       :func:`lagrange.positions` with Matplotlib's Agg backend.
 
@@ -74,23 +77,56 @@ class GymEnv(gym.Env):
         self._positions = jax.jit(lambda q: positions(task.chain, q))
         self._state: TaskState | None = None
         self._t = 0
+        self._broken = False
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         key = jax.random.PRNGKey(int(self.np_random.integers(0, 2**31 - 1)))
         self._state, obs = self._reset_fn(key)
-        self._t = 0
+        self._t, self._broken = 0, False
         return np.asarray(obs, np.float32), {}
 
     def step(self, action):
+        """One control interval under ``action``; see the class docstring.
+
+        Raises:
+            RuntimeError: before :meth:`reset`, and after an episode ended by a non-finite state.
+            ValueError: for an action that is not a finite real array of shape ``(action_size,)`` (None, NaN, a
+                batch); the state is left as it was.
+        """
         if self._state is None:
             raise RuntimeError("GymEnv.step called before reset()")
-        a = np.asarray(action, dtype=np.float64).reshape(self.action_space.shape)
+        if self._broken:
+            raise RuntimeError("GymEnv.step: the episode ended with a non-finite state (info['nonfinite']); call "
+                               "reset() before stepping again")
+        a = self._check_action(action)
         self._state, obs, reward = self._step_fn(self._state, jnp.asarray(a, self._dtype))
         self._t += 1
         truncated = self._t >= self.task.horizon
         info = {"q": np.asarray(self._state.q, np.float64), "qd": np.asarray(self._state.qd, np.float64)}
-        return np.asarray(obs, np.float32), float(reward), False, bool(truncated), info
+        if not (np.all(np.isfinite(info["q"])) and np.all(np.isfinite(info["qd"])) and np.isfinite(reward)):
+            self._broken, truncated = True, True  # the simulation blew up: end the episode, say so
+            info["nonfinite"] = True
+        with np.errstate(over="ignore", invalid="ignore"):  # a blown-up observation overflows float32: inf
+            obs = np.asarray(obs, np.float32)
+        return obs, float(reward), False, bool(truncated), info
+
+    def _check_action(self, action) -> np.ndarray:
+        shape = self.action_space.shape
+        try:
+            a = np.asarray(action)
+            ok = a.dtype != np.bool_ and (np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating))
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise ValueError(f"GymEnv.step: action must be a real array of shape {shape} in [-1, 1] (action_space "
+                             f"{self.action_space}), got {action!r}")
+        if a.shape != shape:
+            raise ValueError(f"GymEnv.step: action must have shape {shape} (action_space {self.action_space}), got "
+                             f"shape {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"GymEnv.step: action must be finite, got {a.tolist()}; the state is unchanged")
+        return a.astype(np.float64)
 
     def render(self):
         if self.render_mode is None:

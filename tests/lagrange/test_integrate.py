@@ -21,6 +21,7 @@ import pytest
 from jax.test_util import check_grads
 
 import lagrange as lg
+from tests.helpers import states_equal
 
 
 ERK = [lg.RK4(), lg.Euler(), lg.Tsit5(), lg.Dopri5(), lg.Dopri8()]
@@ -364,3 +365,55 @@ def test_symplectic_euler_solves_its_implicit_equation():
     np.testing.assert_allclose(p1, jnp.einsum("bij,bj->bi", M, v), rtol=0, atol=1e-12 * scale)
     loose = lg.step(chain, q, qd, u, h, lg.SymplecticEuler(iterations=4))[1]
     assert float(jnp.max(jnp.abs(loose - qd1))) > 1e-9  # the sweep count matters: the check can fail
+
+
+# ------------------------------------------------------------------ arguments
+
+
+def test_arguments_are_converted_or_refused_by_name():
+    """Integers and lower-precision floats are converted to the chain's float dtype (float64 here), which gives the
+    float64 run's numbers; booleans and complex numbers, a zero-length or negative or fractional number of
+    intervals, shapes that do not match the chain and a boolean ``dt`` are refused, naming the argument."""
+    chain = lg.systems.acrobot()
+    q0, qd0, us = jnp.array([0.0, 1.0]), jnp.zeros(2), jnp.zeros((3, 1))
+    ref = lg.simulate(chain, q0, qd0, us, 0.01)
+    for q in (np.array([0, 1]), jnp.array([0.0, 1.0], jnp.float16), jnp.array([0.0, 1.0], jnp.float32)):
+        tr = lg.simulate(chain, q, qd0, np.zeros((3, 1), np.int32), 0.01)
+        assert tr.q.dtype == tr.u.dtype == jnp.float64
+        np.testing.assert_array_equal(tr.q, ref.q)  # 0 and 1 are exact in every one of these types
+    np.testing.assert_array_equal(lg.simulate(chain, q0, qd0, None, 0.01, steps=3).q, ref.q)  # unactuated: u = 0
+    q1, qd1 = lg.step(chain, np.array([0, 1]), np.zeros(2, np.int64), np.zeros(1, np.int8), 0.01)
+    assert q1.dtype == jnp.float64 and states_equal((q1, qd1), lg.step(chain, q0, qd0, us[0], 0.01))
+    policy = lambda t, q, qd: jnp.zeros(1, jnp.int32)  # noqa: E731
+    np.testing.assert_array_equal(lg.simulate(chain, q0, qd0, policy, 0.01, steps=3).q, ref.q)
+    refused = [
+        (dict(q0=jnp.array([True, False])), TypeError, r"q0 must hold real numbers .* got dtype bool"),
+        (dict(qd0=jnp.array([1j, 0])), TypeError, r"qd0 must hold real numbers .* got dtype complex"),
+        (dict(controls=jnp.zeros((3, 1), bool)), TypeError, r"controls must hold real numbers"),
+        (dict(controls=lambda t, q, qd: jnp.ones(1, bool), steps=2), TypeError, r"the policy's u must hold real"),
+        (dict(controls=jnp.zeros((0, 1))), ValueError, r"at least one control interval: shape \(T >= 1, 1\), got \(0, 1\)"),
+        (dict(controls=None, steps=-1), ValueError, r"steps must be None or an integer >= 1 .* got -1"),
+        (dict(controls=None, steps=0), ValueError, r"steps must be None or an integer >= 1 .* got 0"),
+        (dict(controls=None, steps=2.5), ValueError, r"steps must be None or an integer >= 1 .* got 2\.5"),
+        (dict(steps=True), ValueError, r"steps must be None or an integer >= 1 .* got True"),
+        (dict(steps=4), ValueError, r"steps=4 disagrees with controls of length 3"),
+        (dict(dt=True), TypeError, r"dt must be a positive real number of seconds, got True"),
+        (dict(dt=np.bool_(True)), TypeError, r"dt must be a positive real number of seconds"),
+        (dict(dt=0.01j), TypeError, r"dt must be a positive real number of seconds"),
+        (dict(dt=-0.01), ValueError, r"dt must be a finite number > 0 seconds"),
+        (dict(q0=jnp.zeros(3)), ValueError, r"q0 must have shape \(2,\) for this chain, got \(3,\)"),
+        (dict(controls=jnp.zeros((3, 2))), ValueError, r"controls must have shape \(T, 1\) for this chain"),
+    ]
+    for change, error, message in refused:
+        args = {**dict(q0=q0, qd0=qd0, controls=us, dt=0.01), **change}
+        with pytest.raises(error, match=message):
+            lg.simulate(chain, args.pop("q0"), args.pop("qd0"), args.pop("controls"), args.pop("dt"), **args)
+    for q, qd, u, error, message in [
+        (jnp.zeros(3), jnp.zeros(3), jnp.zeros(1), ValueError, r"q and qd must have the same shape \(\*batch, n = 2\)"),
+        (jnp.zeros((4, 2)), jnp.zeros(2), jnp.zeros(1), ValueError, r"got \(4, 2\) and \(2,\)"),
+        (jnp.zeros(2), jnp.zeros(2), jnp.zeros(2), ValueError, r"u must have shape \(\*batch, m = 1\)"),
+        (jnp.zeros(2, bool), jnp.zeros(2), jnp.zeros(1), TypeError, r"q must hold real numbers"),
+        (jnp.zeros(2), jnp.zeros(2), jnp.zeros(1, complex), TypeError, r"u must hold real numbers"),
+    ]:
+        with pytest.raises(error, match=message):
+            lg.step(chain, q, qd, u, 0.01)

@@ -128,3 +128,29 @@ def test_brax_ppo_runs_one_iteration_on_a_task():
     obs = jnp.zeros(task.observation_size, jnp.float32)
     action, _ = policy(obs, jax.random.PRNGKey(0))
     assert action.shape == (1,) and bool(jnp.all(jnp.abs(action) <= 1.0))
+
+
+def test_brax_env_refuses_a_batch_where_one_is_expected():
+    """A (1, 1) action once turned the state into a batch and returned another reward; the adapter takes one action
+    of shape (action_size,) and one key, and names the shape it got (Brax's VmapWrapper vmaps over batches)."""
+    from brax.envs.wrappers import training
+
+    from lagrange.interop.brax import BraxEnv
+
+    env = BraxEnv(Cartpole.rods(horizon=5))
+    state = env.reset(jax.random.PRNGKey(0))
+    for action, shape in ((jnp.zeros((1, 1)), r"\(1, 1\)"), (jnp.zeros(()), r"\(\)"), (jnp.zeros(2), r"\(2,\)")):
+        with pytest.raises(ValueError, match=rf"BraxEnv\.step: action must have shape \(action_size,\) = \(1,\), got "
+                                             rf"{shape}; jax\.vmap the step"):
+            env.step(state, action)
+    with pytest.raises(TypeError, match=r"BraxEnv\.step: action must hold real numbers in \[-1, 1\], got dtype bool"):
+        env.step(state, jnp.array([True]))
+    with pytest.raises(ValueError, match=r"BraxEnv\.reset: rng must be one PRNG key, of shape \(2,\), got shape "
+                                         r"\(3, 2\); jax\.vmap the reset"):
+        env.reset(jax.random.split(jax.random.PRNGKey(0), 3))
+    with pytest.raises(ValueError, match=r"rng must be one PRNG key, of shape \(\), got shape \(3,\)"):
+        env.reset(jax.random.split(jax.random.key(0), 3))
+    assert env.reset(jax.random.key(0)).obs.shape == (4,)  # a typed key is one key too
+    wrapped = training.wrap(env, episode_length=5)  # vmapped by Brax: one action per environment
+    s = wrapped.reset(jax.random.split(jax.random.PRNGKey(1), 3))
+    assert wrapped.step(s, jnp.zeros((3, 1))).obs.shape == (3, 4)

@@ -1,10 +1,13 @@
 """The Gymnasium adapter (lagrange/interop/gymnasium.py): it passes Gymnasium's own env checker, reproduces
-the task exactly, truncates episodes at the horizon and renders the chain."""
+the task exactly, truncates episodes at the horizon and renders the chain; an action that is None, NaN or of another
+shape is refused by name with the state left as it was, and a state that turns non-finite ends the episode with
+``info["nonfinite"]``."""
 
 from __future__ import annotations
 
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from lagrange.tasks import PAPER_TASKS, Acrobot
 
@@ -46,3 +49,31 @@ def test_gym_env_reproduces_the_task_truncates_at_the_horizon_and_renders():
     # The chain is drawn: blue-ish pixels of the links exist, and the frame is not uniform.
     blue = (frame[..., 2] > 150) & (frame[..., 0] < 100)
     assert blue.sum() > 100 and frame.std() > 10
+
+
+def test_gym_env_refuses_bad_actions_and_ends_a_blown_up_episode():
+    import lagrange as lg
+    from lagrange.interop.gymnasium import GymEnv
+    from lagrange.tasks import ChainSwingup
+
+    env = GymEnv(Acrobot.rods(horizon=5))
+    env.reset(seed=0)
+    q = env._state.q
+    for action, message in ((None, r"action must be a real array of shape \(1,\) in \[-1, 1\] .* got None"),
+                            ([np.nan], r"action must be finite, got \[nan\]; the state is unchanged"),
+                            ([np.inf], r"action must be finite"), ("push", r"action must be a real array .* got 'push'"),
+                            ([True], r"action must be a real array"),
+                            (np.zeros((1, 1)), r"action must have shape \(1,\) .* got shape \(1, 1\)"),
+                            (0.5, r"action must have shape \(1,\) .* got shape \(\)")):
+        with pytest.raises(ValueError, match=rf"GymEnv\.step: {message}"):
+            env.step(action)
+        assert env._state.q is q and env._t == 0  # nothing stepped
+    # a gear of 1e300 blows the state up in one step: the episode ends (truncated) and says so
+    blown = GymEnv(ChainSwingup(lg.systems.pendulum(gear=1e300), dt=0.05, horizon=5))
+    blown.reset(seed=0)
+    _, reward, terminated, truncated, info = blown.step(np.ones(1, np.float32))
+    assert truncated and not terminated and info["nonfinite"] is True and not np.isfinite(reward)
+    with pytest.raises(RuntimeError, match=r"ended with a non-finite state .* call reset\(\)"):
+        blown.step(np.zeros(1, np.float32))
+    blown.reset(seed=1)
+    assert "nonfinite" not in blown.step(np.zeros(1, np.float32))[4]  # reset starts afresh
