@@ -6,14 +6,21 @@ restarted from its observed first state, so the error does not compound over a l
 search) on the gradient ``jax.grad`` takes through the solver's steps, all iterations in one compiled ``lax.scan``.
 Any parameter a chain has can be identified this way (masses, lengths, inertias, damping, gears, gravity), and any
 parametrisation (a log scale keeps a mass positive; a density ties a link's inertia to its mass).
+
+A fit whose iterates leave the parameters' valid range (a mass driven negative, a step too large for the guessed
+chain) does not abort: the loss goes non-finite there, :func:`identify` keeps the best parameters found before, and
+its result (and a warning) says at which iteration, on which windows and with which ``theta`` the simulation failed.
 """
 
 from __future__ import annotations
 
+import warnings
 from typing import Callable, NamedTuple
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optax
 from jaxtyping import Array, ArrayLike, Float
 
@@ -24,12 +31,23 @@ __all__ = ["Identified", "identify"]
 
 
 class Identified(NamedTuple):
-    """What :func:`identify` returns: the fitted ``theta``, its ``chain``, and the loss before every iteration and
-    after the last (``losses``, shape ``(iterations + 1,)``)."""
+    """What :func:`identify` returns.
+
+    Attributes:
+        theta (Float[Array, "p"]): the best parameters found: those of the lowest finite loss.
+        chain (Chain): ``make_chain(theta)``.
+        losses (Float[Array, "iterations+1"]): the loss before every iteration and after the last (non-finite where
+            the simulation failed).
+        best_iteration (int): the index into ``losses`` of ``theta``'s loss.
+        failure (str | None): None when every loss was finite; else where and why the fit failed (the first
+            iteration whose loss or gradient went non-finite, the windows whose simulation did, the ``theta`` there).
+    """
 
     theta: Float[Array, " p"]
     chain: Chain
     losses: Float[Array, " iterations+1"]
+    best_iteration: int = 0
+    failure: str | None = None
 
 
 def identify(
@@ -79,29 +97,115 @@ def identify(
     scale = jnp.std(target - states[:, :-1], axis=(0, 1))
     scale = jnp.where(scale > 0, scale, 1.0)
 
-    def loss(theta):
+    def scaled_errors(theta):
+        """The simulated windows' errors, scaled, ``(W, T, 2 n)``; non-finite where a simulation failed."""
         chain = make_chain(theta)
 
         def window(x, u):
-            tr = lg.simulate(chain, x[0, :n], x[0, n:], u, dt, solver, steps=steps)
+            tr = lg.simulate(chain, x[0, :n], x[0, n:], u, dt, solver, steps=steps, check=False)
             return jnp.concatenate([tr.q[1:], tr.qd[1:]], axis=-1)
 
         sim = jax.vmap(window)(states, controls) if m else jax.vmap(lambda x: window(x, None))(states)
-        return jnp.mean(((sim - target) / scale) ** 2)
+        return (sim - target) / scale
+
+    def loss(theta):
+        return jnp.mean(scaled_errors(theta) ** 2)
+
+    def failed_windows(theta) -> list[int]:
+        return np.flatnonzero(~np.all(np.isfinite(np.asarray(jax.jit(scaled_errors)(theta))), axis=(1, 2))).tolist()
 
     opt = optax.lbfgs()
     value_and_grad = optax.value_and_grad_from_state(loss)
 
-    def step(carry, _):
-        theta, state = carry
+    def step(carry, i):
+        theta, state, best, best_value, best_at, bad_theta, failed_at = carry
+        value, grad = value_and_grad(theta, state=state)
+        finite = jnp.isfinite(value) & jnp.all(jnp.isfinite(grad))
+        better = finite & (value < best_value)
+        best, best_value, best_at = (jnp.where(better, theta, best), jnp.where(better, value, best_value),
+                                     jnp.where(better, i, best_at))
+        first = ~finite & (failed_at < 0)
+        bad_theta, failed_at = jnp.where(first, theta, bad_theta), jnp.where(first, i, failed_at)
+        updates, state = opt.update(grad, state, theta, value=value, grad=grad, value_fn=loss)
+        return (optax.apply_updates(theta, updates), state, best, best_value, best_at, bad_theta, failed_at), value
+
+    @eqx.filter_jit  # a run-time check that fails inside raises EquinoxRuntimeError (jax.jit: an opaque one)
+    def fit(theta):
+        minus_one = jnp.asarray(-1)
+        init = (theta, opt.init(theta), theta, jnp.asarray(jnp.inf, loss(theta).dtype), minus_one, theta, minus_one)
+        (theta, _, best, best_value, best_at, bad_theta, failed_at), values = jax.lax.scan(
+            step, init, jnp.arange(iterations))
+        return theta, jnp.append(values, loss(theta)), best, best_value, best_at, bad_theta, failed_at
+
+    try:
+        final, losses, best, best_value, best_at, bad_theta, failed_at = fit(theta0)
+    except eqx.EquinoxRuntimeError as err:  # a run-time check of the chain's parameters, inside the compiled fit
+        return _fit_by_iterations(theta0, iterations, opt, value_and_grad, loss, make_chain, err)
+    last, failed_at = float(losses[-1]), int(failed_at)
+    if failed_at < 0 and np.isfinite(last):  # the fit as L-BFGS ends it
+        return Identified(final, make_chain(final), losses, iterations, None)
+    if failed_at < 0:
+        failed_at, bad_theta = iterations, final
+    theta, k = (final, iterations) if np.isfinite(last) and last < float(best_value) else (best, int(best_at))
+    if k < 0:
+        raise ValueError(f"identify: the loss or its gradient is not finite at theta0 = {np.asarray(theta0).tolist()} "
+                         f"(the simulation of windows {failed_windows(theta0)} fails there, or the parametrisation "
+                         f"has no derivative); start from parameters the chain can be simulated with")
+    failure = (f"identify: the loss or its gradient went non-finite at iteration {failed_at}, with theta = "
+               f"{np.asarray(bad_theta).tolist()} (the simulation of windows {failed_windows(bad_theta)} failed: "
+               f"parameters out of their valid range, or a step dt too large for them); returning the best theta "
+               f"found, at iteration {k} (loss {float(losses[k]):.6g})")
+    warnings.warn(failure, RuntimeWarning, stacklevel=2)
+    return Identified(theta, make_chain(theta), losses, k, failure)
+
+
+def _fit_by_iterations(theta0, iterations, opt, value_and_grad, loss, make_chain, error) -> Identified:
+    """The fit one compiled iteration at a time, after the compiled fit stopped on a run-time check (an
+    ``eqx.error_if`` of the chain's parameters, met at ``theta`` or at a trial point of the line search): it stops at
+    the iteration that raises it and returns the best parameters found before."""
+
+    @eqx.filter_jit
+    def one(theta, state):
         value, grad = value_and_grad(theta, state=state)
         updates, state = opt.update(grad, state, theta, value=value, grad=grad, value_fn=loss)
-        return (optax.apply_updates(theta, updates), state), value
+        return optax.apply_updates(theta, updates), state
 
-    @jax.jit
-    def fit(theta):
-        (theta, _), values = jax.lax.scan(step, (theta, opt.init(theta)), None, length=iterations)
-        return theta, jnp.append(values, loss(theta))
+    value_of = eqx.filter_jit(loss)
+    theta, state = jnp.asarray(theta0), opt.init(jnp.asarray(theta0))
+    values, best, best_value, failure = [], theta, np.inf, None
+    for i in range(iterations + 1):
+        try:
+            value = float(value_of(theta))
+        except eqx.EquinoxRuntimeError as err:
+            failure = f"iteration {i}: the loss at theta = {np.asarray(theta).tolist()} failed a run-time check"
+            error = err
+            break
+        values.append(value)
+        if np.isfinite(value) and value < best_value:
+            best, best_value = theta, value
+        if i == iterations:
+            break
+        try:
+            theta, state = one(theta, state)
+        except eqx.EquinoxRuntimeError as err:
+            failure = (f"iteration {i}: its line search from theta = {np.asarray(theta).tolist()} met a run-time "
+                       f"check")
+            error = err
+            break
+    reason = _check_message(error)
+    if not np.isfinite(best_value):
+        raise ValueError(f"identify: no finite loss from theta0 = {np.asarray(theta0).tolist()}: {reason}") from None
+    k = values.index(best_value)
+    failure = (f"identify: {failure or 'a run-time check failed'} ({reason}); returning the best theta found, at "
+               f"iteration {k} (loss {best_value:.6g})")
+    warnings.warn(failure, RuntimeWarning, stacklevel=3)
+    return Identified(best, make_chain(best), jnp.asarray(values), k, failure)
 
-    theta, losses = fit(theta0)
-    return Identified(theta, make_chain(theta), losses)
+
+def _check_message(error: Exception) -> str:
+    """The message of the run-time check in an ``EquinoxRuntimeError``'s text."""
+    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
+    for line in lines:
+        if "EquinoxRuntimeError:" in line:
+            return line.split("EquinoxRuntimeError:", 1)[1].strip()
+    return lines[0] if lines else type(error).__name__

@@ -1,6 +1,9 @@
 """``optim.identify``: a chain's parameters recovered from trajectories of the chain itself (exact data, float64), and
-its argument checks."""
+its argument checks; a fit whose line search meets parameters the chain cannot be simulated with carries on (it once
+aborted with "reduce dt"), and one stopped by a run-time check of the parameters returns the best theta found and says
+where and why."""
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -46,3 +49,45 @@ def test_argument_checks():
         identify(_acrobot, jnp.zeros(4), states, controls, 0.0)
     with pytest.raises(ValueError, match="iterations must be an integer >= 1"):
         identify(_acrobot, jnp.zeros(4), states, controls, 0.01, iterations=0)
+
+
+def _pendulum_windows(damping, count=4, steps=5):
+    rng = np.random.default_rng(0)
+    chain = Chain([Link("revolute", 1.0, 1.0, damping=damping, gear=1.0)])
+    states, controls = [], []
+    for _ in range(count):
+        u = np.full((steps, 1), rng.uniform(-1, 1))
+        tr = lg.simulate(chain, jnp.asarray(rng.uniform(-1, 1, 1)), jnp.asarray(rng.uniform(-1, 1, 1)), jnp.asarray(u),
+                         0.01)
+        states.append(np.concatenate([tr.q, tr.qd], axis=-1))
+        controls.append(u)
+    return np.array(states), np.array(controls)
+
+
+def test_a_fit_that_meets_invalid_parameters_keeps_the_best_it_found():
+    """The data's damping (0.02) lies below what the guessed chains allow (0.1): trial points of the line search
+    there make the simulation NaN, which once aborted the fit; the fit now ends at the boundary with finite losses.
+    Where the chain checks its parameter at run time instead, the fit stops there and returns the best theta found,
+    saying where and why."""
+    states, controls = _pendulum_windows(0.02)
+
+    def nan_below(theta):
+        return Chain([Link("revolute", 1.0, 1.0, damping=jnp.where(theta[0] < 0.1, jnp.nan, theta[0]), gear=1.0)])
+
+    fit = identify(nan_below, np.array([1.0]), states, controls, 0.01, iterations=10)
+    assert fit.failure is None and bool(jnp.all(jnp.isfinite(fit.losses))) and fit.best_iteration == 10
+    assert 0.1 <= float(fit.theta[0]) < 0.1 + 1e-6 and float(fit.losses[-1]) < float(fit.losses[0])
+
+    def checked(theta):
+        return Chain([Link("revolute", 1.0, 1.0, damping=eqx.error_if(theta[0], theta[0] < 0.1, "damping < 0.1"),
+                           gear=1.0)])
+
+    with pytest.warns(RuntimeWarning, match=r"identify: iteration 0: its line search from theta = \[1\.0\] met a "
+                                            r"run-time check \(damping < 0\.1\); returning the best theta found, at "
+                                            r"iteration 0"):
+        stopped = identify(checked, np.array([1.0]), states, controls, 0.01, iterations=10)
+    assert float(stopped.theta[0]) == 1.0 and stopped.best_iteration == 0 and "damping < 0.1" in stopped.failure
+    np.testing.assert_allclose(stopped.losses, fit.losses[:1], rtol=1e-12)
+    with pytest.raises(ValueError, match=r"the loss or its gradient is not finite at theta0 = \[1\.0\]"):
+        identify(lambda th: Chain([Link("revolute", 1.0, 1.0, damping=0.05 + jnp.sqrt(th[0] - 1.0), gear=1.0)]),
+                 np.array([1.0]), states, controls, 0.01, iterations=2)  # no derivative at theta0
