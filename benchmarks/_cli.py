@@ -1,4 +1,5 @@
-"""Shared helpers of the benchmark scripts: where they write, the ``--bodies`` flag, and the paper tasks by name."""
+"""Shared helpers of the benchmark scripts: where they write, the ``--bodies`` flag, the paper tasks by name, and a
+markdown table of result rows."""
 
 from __future__ import annotations
 
@@ -50,3 +51,13 @@ def marked_bodies(result: dict) -> str:
     """The bodies a result dict (or a config dict) names: its ``"bodies"``, the rods where there is none (the inverse
     of :func:`bodies_marker`; results and configs from before the field existed are on the rods)."""
     return result.get("bodies", "rods")
+
+
+def markdown_table(rows, keys) -> str:
+    """``rows`` (dicts) as a markdown table of the columns ``keys``: floats to 3 significant digits, a missing entry
+    ``None``."""
+    lines = ["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
+    for r in rows:
+        lines.append("| " + " | ".join(f"{r.get(k):.3g}" if isinstance(r.get(k), float) else str(r.get(k))
+                                      for k in keys) + " |")
+    return "\n".join(lines)

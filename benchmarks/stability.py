@@ -39,7 +39,7 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import lagrange as lg  # noqa: E402
-from benchmarks._cli import outputs  # noqa: E402
+from benchmarks._cli import markdown_table, outputs  # noqa: E402
 from lagrange.dynamics import _forward  # noqa: E402  (simulate's vector field: no raise on a singular M)
 from optim.checkpoint import write_json  # noqa: E402
 
@@ -348,17 +348,6 @@ def plot_gradients(rows, path):
     plt.close(fig)
 
 
-def _table(rows, keys):
-    lines = ["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
-    for r in rows:
-        cells = []
-        for k in keys:
-            v = r.get(k)
-            cells.append(f"{v:.3g}" if isinstance(v, float) else str(v))
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines)
-
-
 # the stress batch: its chain sizes and states in all (split evenly among them), by --quick
 STRESS = {False: ((2, 3, 5, 8, 12, 20), 10_000), True: ((2, 3, 5, 8), 1000)}
 # the error-controlled mode's states per chain size, by --quick: fewer where the adaptive solve costs more
@@ -371,16 +360,18 @@ def _fixed_step_sweeps(out, quick, path, plot_path):
     steps = 20_000 if quick else 100_000
     print(f"energy drift over {steps} steps", flush=True)
     out["energy_drift"] = energy_drift(steps)
-    print(_table(out["energy_drift"], ["system", "solver", "dt", "horizon_s", "first_half", "second_half", "max"]))
+    print(markdown_table(out["energy_drift"],
+                         ["system", "solver", "dt", "horizon_s", "first_half", "second_half", "max"]))
 
     print("float32 vs float64 parting times", flush=True)
     out["parting"] = parting(steps=10_000 if quick else 30_000)
-    print(_table(out["parting"], ["system", "float32_parting_s", "perturbed_1e_7_parting_s", "float32_final_gap"]))
+    print(markdown_table(out["parting"],
+                         ["system", "float32_parting_s", "perturbed_1e_7_parting_s", "float32_final_gap"]))
 
     horizons = [10, 30, 100, 300, 1000] if quick else [10, 20, 50, 100, 200, 500, 1000, 2000, 5000]
     print("gradient norm vs horizon (acrobot)", flush=True)
     out["gradient_growth"] = gradient_growth(horizons)
-    print(_table(out["gradient_growth"], ["dtype", "horizon_s", "grad_norm", "rel_diff_vs_float64"]))
+    print(markdown_table(out["gradient_growth"], ["dtype", "horizon_s", "grad_norm", "rel_diff_vs_float64"]))
     plot_gradients(out["gradient_growth"], plot_path)
     write_json(path, out)
 
@@ -391,9 +382,9 @@ def _fixed_step_sweeps(out, quick, path, plot_path):
     for n in sizes:
         out["stress"] += stress(total // len(sizes), (n,), seed=n)
         write_json(path, out)
-    print(_table(out["stress"], ["n", "states", "nonfinite", "unreported", "fd_nonfinite_at_start",
-                                 "min_energy_error_before_blowup", "finite_energy_error_gt_1e_2",
-                                 "rerun_with_8_substeps", "nonfinite_with_8_substeps"]))
+    print(markdown_table(out["stress"], ["n", "states", "nonfinite", "unreported", "fd_nonfinite_at_start",
+                                         "min_energy_error_before_blowup", "finite_energy_error_gt_1e_2",
+                                         "rerun_with_8_substeps", "nonfinite_with_8_substeps"]))
 
 
 def main(argv=None):
@@ -419,7 +410,7 @@ def main(argv=None):
     t = time.perf_counter()
     out["adaptive_stress"] = adaptive_stress(states, total // len(sizes))
     out["adaptive_stress"]["wall_s"] = time.perf_counter() - t
-    print(_table(out["adaptive_stress"]["rows"], [
+    print(markdown_table(out["adaptive_stress"]["rows"], [
         "n", "states", "finished", "stopped_by_max_steps", "nonfinite", "energy_error_median", "energy_error_max",
         "steps_median", "steps_max", "busiest_interval_steps", "wall_s_per_trajectory", "rk4_nonfinite",
         "rk4_nonfinite_finished"]))

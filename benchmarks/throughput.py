@@ -4,30 +4,14 @@
     python -m benchmarks.throughput --scaling-only   # only the n-link scaling sweep
     python -m benchmarks.throughput --quick          # reduced sweeps, written under runs/benchmarks/
 
-The acrobot (``lagrange.systems.acrobot()``), float64 on the CPU, dt = 0.01, rollouts of
-``STEPS`` control steps from random states under random controls, batch 1, 64, 1024, 4096.
-
-- forward: env-steps/s = batch x steps / wall time of a jitted rollout (final state only).
-- gradient: d/d(controls) of ``sum(q_T^2 + qd_T^2)``, the same rollout differentiated by
-  reverse mode (``jax.grad``); env-steps/s counts forward steps covered.
-- same integrator, same run: semi-implicit Euler (lagrange ``SemiImplicitEuler``, Brax
-  generalized, MuJoCo C ``Euler``, MJX ``Euler``) and RK4 (lagrange ``RK4``, the hand-written closed
-  form ``benchmarks/oracles/closed_form.py``, MuJoCo C ``RK4``).
-- MuJoCo C runs ``mujoco.rollout`` with 2 threads; Pinocchio's ABA (and its derivatives) is timed
-  per call from Python on a single state (it has no batch API), so its numbers are per
-  dynamics evaluation, not per env-step of an integrator.
-- compile: seconds for the first call (trace + compile + run) of the batch-1024 forward and
-  gradient functions.
-- scaling: n-link pendulums, n = 2 ... 64, semi-implicit Euler, rollouts of 20 steps, per env-step: lagrange
-  forward and gradient at batch 1024 (float64 and float32) and at batch 1 (float64), MuJoCo C at batch 1024
-  (2 threads) and batch 1, MJX and Brax at batch 1024 (n <= 4: MJX at n = 8 did not finish its first forward
-  call in 150 s), Pinocchio ABA (and its derivatives) and MuJoCo C's finite-difference step Jacobians
-  (``mjd_transitionFD``, what a finite-difference gradient through a rollout needs once per env-step) per call,
-  each the minimum over 5 timed repeats (robust on a shared machine; lagrange's float64 forward and MuJoCo C, at
-  batch 1024 and at batch 1, over 4 more rounds that alternate between the two); lagrange's first calls in CPU seconds (the
-  cost of compiling on a busy machine); the largest difference between lagrange's and MuJoCo's trajectories, how far
-  MuJoCo's own move when every initial angle moves by one ulp, and lagrange's against Pinocchio's ABA stepped by the
-  same integrator (all 1024 rollouts, in a Python loop); the ratios to MuJoCo C and Pinocchio; the exponent of a least-squares fit ``t ~ n^p`` over n >= 8.
+The acrobot table (:func:`acrobot_main`): ``lagrange.systems.acrobot()``, float64, dt = 0.01, rollouts of ``STEPS``
+control steps from random states under random controls, batch 1 to 4096; env-steps per second of the jitted rollout
+(forward, final state only) and of the gradient of ``sum(q_T^2 + qd_T^2)`` with respect to the controls by reverse
+mode, counting the forward steps covered. Semi-implicit Euler beside Brax generalized, MJX and MuJoCo C's ``Euler``;
+RK4 beside the hand-written closed form (``benchmarks/oracles/closed_form.py``) and MuJoCo C's ``RK4``. MuJoCo C runs
+``mujoco.rollout`` with 2 threads; Pinocchio's ABA (and its derivatives) is timed per call on one state from Python (it
+has no batch API). Compile: seconds of the first call of the batch-1024 functions. The n-link scaling sweep:
+:func:`scaling_rows`. Both tables, read: ``docs/benchmarks.md``.
 
 Writes the acrobot table to ``benchmarks/results/throughput.json``, the scaling sweep to
 ``benchmarks/results/throughput_scaling.json`` and its plot to ``docs/img/throughput_scaling.png``
@@ -39,7 +23,6 @@ from __future__ import annotations
 import argparse
 import os
 import time
-import warnings
 
 import jax
 
@@ -49,14 +32,17 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import lagrange as lg  # noqa: E402
-from benchmarks._cli import outputs  # noqa: E402
+from benchmarks._cli import markdown_table, outputs  # noqa: E402
+from benchmarks._engines import brax_rollout, mjx_rollout  # noqa: E402
 from benchmarks._timing import block, median_time  # noqa: E402
+from benchmarks.oracles import closed_form as cf  # noqa: E402
 from lagrange.interop.mjcf import to_mjcf  # noqa: E402
 from optim.checkpoint import write_json  # noqa: E402
 
 DT = 0.01
 STEPS = 100
 ALTERNATING_ROUNDS = 4
+JAX_ENGINES_MAX_N = 4  # MJX and Brax in the scaling sweep: MJX at n = 8 did not finish its first forward call in 150 s
 
 
 def _loss(q, qd):
@@ -87,8 +73,6 @@ def lagrange_engine(chain, solver):
 
 
 def closed_form_engine():
-    from benchmarks.oracles import closed_form as cf
-
     params = cf.acrobot.Params()
 
     def rollout(q0, qd0, us):
@@ -99,33 +83,11 @@ def closed_form_engine():
 
 
 def brax_engine(chain):
-    from brax.generalized import pipeline
-    from brax.io import mjcf as bmjcf
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        sys = bmjcf.loads(to_mjcf(chain, timestep=DT, integrator="Euler"))
-
-    def rollout(q0, qd0, us):
-        state = pipeline.init(sys, q0, qd0)
-        state, _ = jax.lax.scan(lambda s, u: (pipeline.step(sys, s, u), None), state, us)
-        return state.q, state.qd
-
-    return _jax_pair(rollout)
+    return _jax_pair(brax_rollout(chain, DT))
 
 
 def mjx_engine(chain, integrator="Euler"):
-    import mujoco
-    from mujoco import mjx
-
-    mx = mjx.put_model(mujoco.MjModel.from_xml_string(to_mjcf(chain, timestep=DT, integrator=integrator)))
-
-    def rollout(q0, qd0, us):
-        d = mjx.make_data(mx).replace(qpos=q0, qvel=qd0)
-        d, _ = jax.lax.scan(lambda d, u: (mjx.step(mx, d.replace(ctrl=u)), None), d, us)
-        return d.qpos, d.qvel
-
-    return _jax_pair(rollout)
+    return _jax_pair(mjx_rollout(chain, DT, integrator))
 
 
 # ------------------------------------------------------------------------------ MuJoCo C, Pinocchio
@@ -233,35 +195,33 @@ def time_jax(fn, args, cpu=False, best=False):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="reduced sweep")
-    ap.add_argument("--no-mjx", action="store_true")
-    ap.add_argument("--max-n", type=int, default=64, help="largest chain in the scaling sweep")
-    ap.add_argument("--jax-engines-max-n", type=int, default=4,
-                    help="largest chain MJX and Brax are timed on (MJX at n = 8 did not finish its first forward call in 150 s)")
     ap.add_argument("--scaling-only", action="store_true", help="run only the n-link scaling sweep")
     args = ap.parse_args(argv)
     results, img = outputs(args.quick)
     suffix = "_quick" if args.quick else ""
-    ns = [n for n in ([2, 4, 8] if args.quick else SCALING_NS) if n <= args.max_n]
     if not args.scaling_only:
-        acrobot_main([1, 64, 1024] if args.quick else [1, 64, 1024, 4096], args.quick, args.no_mjx,
+        acrobot_main([1, 64, 1024] if args.quick else [1, 64, 1024, 4096], args.quick,
                      results / f"throughput{suffix}.json")
-    scaling_main(ns, results / f"throughput_scaling{suffix}.json", img / f"throughput_scaling{suffix}.png",
-                 args.jax_engines_max_n)
+    scaling_main([2, 4, 8] if args.quick else SCALING_NS, results / f"throughput_scaling{suffix}.json",
+                 img / f"throughput_scaling{suffix}.png")
 
 
-def acrobot_main(batches, quick, no_mjx, path):
-    """The acrobot table: every engine at every batch size, the ratios at batch 1024, the first calls' seconds."""
+def _versions(**out):
+    """``out`` with the MuJoCo and Pinocchio versions (or why Pinocchio is missing)."""
     import mujoco
 
-    out = dict(quick=quick, cpu_count=os.cpu_count(), mujoco=mujoco.__version__, dt=DT, steps=STEPS,
-               system="acrobot", rows=[], compile=[], pinocchio=None)
     try:
         import pinocchio
 
-        out["pinocchio"] = pinocchio.__version__
+        pin = pinocchio.__version__
     except ImportError as err:
-        out["pinocchio"] = f"not installed: {err}"
+        pin = f"not installed: {err}"
+    return dict(out, mujoco=mujoco.__version__, pinocchio=pin)
 
+
+def acrobot_main(batches, quick, path):
+    """The acrobot table: every engine at every batch size, the ratios at batch 1024, the first calls' seconds."""
+    out = _versions(quick=quick, cpu_count=os.cpu_count(), dt=DT, steps=STEPS, system="acrobot", rows=[], compile=[])
     chain = lg.systems.acrobot()
     engines = {
         ("SemiImplicitEuler", "lagrange"): lambda: lagrange_engine(chain, lg.SemiImplicitEuler()),
@@ -270,8 +230,6 @@ def acrobot_main(batches, quick, no_mjx, path):
         ("RK4", "lagrange"): lambda: lagrange_engine(chain, lg.RK4()),
         ("RK4", "closed_form"): closed_form_engine,
     }
-    if no_mjx:
-        engines.pop(("SemiImplicitEuler", "mjx"))
     for (integ, name), make in engines.items():
         fwd, grad = make()
         for B in batches:
@@ -301,26 +259,24 @@ def acrobot_main(batches, quick, no_mjx, path):
         out["pinocchio_acrobot"] = dict(aba_calls_per_s=1 / aba, aba_derivatives_calls_per_s=1 / aba_d)
         print(f"  pinocchio ABA {1 / aba:.3g} calls/s, ABA derivatives {1 / aba_d:.3g} calls/s", flush=True)
 
-    # ratios at batch 1024
-    def get(integ, eng, key, B=1024):
-        for r in out["rows"]:
-            if r["integrator"] == integ and r["engine"] == eng and r["batch"] == B:
-                return r[key]
-        return None
+    def ratio(integ, other, mode="forward"):  # lagrange's env-steps per second over ``other``'s at batch 1024
+        rate = {(r["integrator"], r["engine"]): r[f"{mode}_steps_per_s"] for r in out["rows"] if r["batch"] == 1024}
+        return rate[integ, "lagrange"] / rate[integ, other]
 
-    lg_sie_f, lg_sie_g = get("SemiImplicitEuler", "lagrange", "forward_steps_per_s"), get("SemiImplicitEuler", "lagrange", "gradient_steps_per_s")
     ratios = {
-        "forward_vs_brax (SIE, B=1024; target >= 20)": lg_sie_f / get("SemiImplicitEuler", "brax", "forward_steps_per_s"),
-        "forward_vs_mujoco_c_2threads (SIE, B=1024; target >= 10)": lg_sie_f / get("SemiImplicitEuler", "mujoco_c_2threads", "forward_steps_per_s"),
-        "forward_vs_mujoco_c_2threads (RK4, B=1024)": get("RK4", "lagrange", "forward_steps_per_s") / get("RK4", "mujoco_c_2threads", "forward_steps_per_s"),
-        "forward_vs_closed_form (RK4, B=1024)": get("RK4", "lagrange", "forward_steps_per_s") / get("RK4", "closed_form", "forward_steps_per_s"),
-        "gradient_vs_brax (SIE, B=1024; target >= 10)": lg_sie_g / get("SemiImplicitEuler", "brax", "gradient_steps_per_s"),
-        "gradient_vs_closed_form (RK4, B=1024)": get("RK4", "lagrange", "gradient_steps_per_s") / get("RK4", "closed_form", "gradient_steps_per_s"),
+        "forward_vs_brax (SIE, B=1024; target >= 20)": ratio("SemiImplicitEuler", "brax"),
+        "forward_vs_mujoco_c_2threads (SIE, B=1024; target >= 10)": ratio("SemiImplicitEuler", "mujoco_c_2threads"),
+        "forward_vs_mujoco_c_2threads (RK4, B=1024)": ratio("RK4", "mujoco_c_2threads"),
+        "forward_vs_closed_form (RK4, B=1024)": ratio("RK4", "closed_form"),
+        "gradient_vs_brax (SIE, B=1024; target >= 10)": ratio("SemiImplicitEuler", "brax", "gradient"),
+        "gradient_vs_closed_form (RK4, B=1024)": ratio("RK4", "closed_form", "gradient"),
+        "gradient_vs_mjx (SIE, B=1024; target >= 30)": ratio("SemiImplicitEuler", "mjx", "gradient"),
     }
-    if not no_mjx:
-        ratios["gradient_vs_mjx (SIE, B=1024; target >= 30)"] = lg_sie_g / get("SemiImplicitEuler", "mjx", "gradient_steps_per_s")
     out["ratios_batch1024"] = ratios
-    _print(out)
+    print(markdown_table(out["rows"], ["integrator", "engine", "batch", "forward_steps_per_s", "gradient_steps_per_s"]))
+    print(markdown_table(out["compile"], ["integrator", "engine", "forward_first_call_s", "gradient_first_call_s"]))
+    for k, v in ratios.items():
+        print(f"lagrange {k}: {v:.3g}")
     write_json(path, out)
     print(f"wrote {path}")
 
@@ -376,12 +332,15 @@ def pinocchio_rollouts(model, chain, q0, qd0, us):
     return out
 
 
-def scaling_rows(ns, jax_engines_max_n=4):
+def scaling_rows(ns):
     """n-link pendulums (every joint actuated), semi-implicit Euler: cost per env-step against n.
 
     lagrange forward and gradient at batch 1024 (float64 and float32) and batch 1 (float64), MuJoCo C at batch 1024
-    (2 threads) and 1, MJX and Brax (batch 1024, n <= ``jax_engines_max_n``), Pinocchio's ABA and its derivatives per
-    call; lagrange's first calls in CPU seconds; the largest difference of lagrange's and MuJoCo's trajectories."""
+    (2 threads) and 1, MJX and Brax (batch 1024, n <= ``JAX_ENGINES_MAX_N``), Pinocchio's ABA and its derivatives and
+    MuJoCo C's finite-difference step Jacobians (``mjd_transitionFD``, what a finite-difference gradient through a
+    rollout needs once per env-step) per call, each the minimum over 5 timed repeats; lagrange's float64 forward and
+    MuJoCo C, at batch 1024 and at batch 1, over 4 more rounds that alternate between the two (a busy spell on a shared
+    machine slows both); lagrange's first calls in CPU seconds; the trajectories (:func:`_trajectory_error`)."""
     rows = []
     for n in ns:
         ch = lg.systems.n_link_pendulum(n, gear=1.0)
@@ -410,7 +369,7 @@ def scaling_rows(ns, jax_engines_max_n=4):
         t1, tm1 = _alternating(forward["_batch1"], mj1.make(*(np.asarray(x) for x in inputs["_batch1"])))
         row["lagrange_batch1_us_per_env_step"] = min(row["lagrange_batch1_us_per_env_step"], t1 / SCALING_T * 1e6)
         row["mujoco_c_batch1_us_per_env_step"] = tm1 / SCALING_T * 1e6
-        if n <= jax_engines_max_n:
+        if n <= JAX_ENGINES_MAX_N:
             for name, make in (("mjx", lambda: mjx_engine(ch, "Euler")), ("brax", lambda: brax_engine(ch))):
                 fwd, grad = make()
                 t, _ = time_jax(fwd, a, best=True)
@@ -470,22 +429,13 @@ def scaling_fit(rows, n_min=8):
     return fit
 
 
-def scaling_main(ns, path, plot_path, jax_engines_max_n=4):
+def scaling_main(ns, path, plot_path):
     """The n-link scaling sweep: its rows, the fitted exponents and the plot."""
-    import mujoco
-
-    out = dict(cpu_count=os.cpu_count(), mujoco=mujoco.__version__, jax=jax.__version__, dt=DT, steps=SCALING_T,
-               system="n_link_pendulum(n, gear=1.0)", integrator="SemiImplicitEuler", pinocchio=None)
-    try:
-        import pinocchio
-
-        out["pinocchio"] = pinocchio.__version__
-    except ImportError as err:
-        out["pinocchio"] = f"not installed: {err}"
     from lagrange.dynamics import RECURSIVE_MIN
 
-    out["recursive_min"] = RECURSIVE_MIN
-    out["scaling"] = scaling_rows(ns, jax_engines_max_n)
+    out = _versions(cpu_count=os.cpu_count(), jax=jax.__version__, dt=DT, steps=SCALING_T,
+                    system="n_link_pendulum(n, gear=1.0)", integrator="SemiImplicitEuler", recursive_min=RECURSIVE_MIN)
+    out["scaling"] = scaling_rows(ns)
     out["scaling_fit"] = scaling_fit(out["scaling"])
     _print_scaling(out)
     _plot_scaling(out["scaling"], plot_path)
@@ -493,60 +443,13 @@ def scaling_main(ns, path, plot_path, jax_engines_max_n=4):
     print(f"wrote {path} and {plot_path}")
 
 
-SCALING_COLUMNS = (
-    ("n", "n", "{:d}"),
-    ("lagrange_us_per_env_step", "lagrange forward", "{:.3g}"),
-    ("lagrange_gradient_us_per_env_step", "lagrange gradient", "{:.3g}"),
-    ("mujoco_c_us_per_env_step", "MuJoCo C", "{:.3g}"),
-    ("forward_speedup_over_mujoco_c", "forward ÷ MuJoCo C", "{:.1f}×"),
-    ("pinocchio_aba_us_per_call", "Pinocchio ABA", "{:.3g}"),
-    ("pinocchio_aba_derivatives_us_per_call", "Pinocchio ABA derivatives", "{:.3g}"),
-    ("gradient_speedup_over_pinocchio_aba_derivatives", "gradient ÷ ABA derivatives", "{:.1f}×"),
-    ("mujoco_c_fd_jacobians_us_per_call", "MuJoCo C finite-difference Jacobians", "{:.3g}"),
-    ("gradient_speedup_over_mujoco_c_fd", "gradient ÷ MuJoCo C finite differences", "{:.1f}×"),
-    ("mjx_us_per_env_step", "MJX forward", "{:.3g}"),
-    ("mjx_gradient_us_per_env_step", "MJX gradient", "{:.3g}"),
-    ("brax_us_per_env_step", "Brax forward", "{:.3g}"),
-    ("brax_gradient_us_per_env_step", "Brax gradient", "{:.3g}"),
-    ("lagrange_f32_us_per_env_step", "lagrange float32 forward", "{:.3g}"),
-    ("lagrange_f32_gradient_us_per_env_step", "lagrange float32 gradient", "{:.3g}"),
-    ("lagrange_batch1_us_per_env_step", "lagrange batch 1 forward", "{:.3g}"),
-    ("lagrange_batch1_gradient_us_per_env_step", "lagrange batch 1 gradient", "{:.3g}"),
-    ("mujoco_c_batch1_us_per_env_step", "MuJoCo C batch 1", "{:.3g}"),
-    ("lagrange_first_call_cpu_s", "forward compile (CPU s)", "{:.2f}"),
-    ("lagrange_gradient_first_call_cpu_s", "gradient compile (CPU s)", "{:.2f}"),
-    ("max_abs_q_difference_to_mujoco", "max abs q − MuJoCo's", "{:.1e}"),
-    ("mujoco_one_ulp_spread", "MuJoCo's own 1-ulp spread", "{:.1e}"),
-    ("max_abs_q_difference_to_pinocchio", "max abs q − Pinocchio's", "{:.1e}"),
-    ("max_abs_q", "max abs q", "{:.3g}"),
-    ("rollouts_finite_in_both", "rollouts finite in both", "{:d}"),
-)
-
-
 def _print_scaling(out):
+    """The sweep transposed, a line per quantity across n, then the fits."""
     rows = out["scaling"]
-    if not rows:
-        return
-    cols = [c for c in SCALING_COLUMNS if any(c[0] in r for r in rows)]
-    print("\n| " + " | ".join(c[1] for c in cols) + " |\n|" + "---:|" * len(cols))
-    for r in rows:
-        print("| " + " | ".join(f.format(r[k]) if k in r else "—" for k, _, f in cols) + " |")
-    for k, v in out.get("scaling_fit", {}).items():
+    for k in dict.fromkeys(k for r in rows for k in r):
+        print(f"{k:50s} " + " ".join(f"{r[k]:9.3g}" if k in r else f"{'-':>9s}" for r in rows))
+    for k, v in out["scaling_fit"].items():
         print(f"{k}: {v:.3g}")
-
-
-def _print(out):
-    print("\n| integrator | engine | batch | forward env-steps/s | gradient env-steps/s |\n|---|---|---|---|---|")
-    for r in out["rows"]:
-        g = r["gradient_steps_per_s"]
-        print(f"| {r['integrator']} | {r['engine']} | {r['batch']} | {r['forward_steps_per_s']:.3g} | "
-              f"{'--' if g is None else f'{g:.3g}'} |")
-    print("\n| ratio at batch 1024 | measured |\n|---|---|")
-    for k, v in out["ratios_batch1024"].items():
-        print(f"| lagrange {k} | {v:.3g} |")
-    print("\n| engine | forward first call [s] | gradient first call [s] |\n|---|---|---|")
-    for r in out["compile"]:
-        print(f"| {r['integrator']} {r['engine']} | {r['forward_first_call_s']:.2f} | {r['gradient_first_call_s']:.2f} |")
 
 
 def _plot_scaling(rows, path):

@@ -33,7 +33,6 @@ from __future__ import annotations
 import argparse
 import os
 import time
-import warnings
 
 import jax
 
@@ -44,6 +43,7 @@ import numpy as np  # noqa: E402
 
 import lagrange as lg  # noqa: E402
 from benchmarks._cli import outputs  # noqa: E402
+from benchmarks._engines import brax_rollout, mjx_rollout  # noqa: E402
 from benchmarks._timing import block, median_time  # noqa: E402
 from lagrange.interop.mjcf import to_mjcf  # noqa: E402
 from optim.checkpoint import write_json, write_text  # noqa: E402
@@ -74,46 +74,20 @@ def lagrange_runner(chain, solver, substeps, tol=None):
         tr = lg.simulate(chain, q0, qd0, us, DT, solver, substeps, rtol=tol, atol=tol, check=False)
         return tr.q[-1], tr.qd[-1]
 
+    return _pair(run)
+
+
+def _pair(run):
+    """``run`` jitted at batch 1 and vmapped over a batch of initial states under the same controls."""
     return jax.jit(run), jax.jit(jax.vmap(run, in_axes=(0, 0, None)))
 
 
 def brax_runner(chain, substeps):
-    from brax.generalized import pipeline
-    from brax.io import mjcf as bmjcf
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        sys = bmjcf.loads(to_mjcf(chain, timestep=DT / substeps, integrator="Euler"))
-
-    def run(q0, qd0, us):
-        state = pipeline.init(sys, q0, qd0)
-
-        def interval(st, u):
-            return jax.lax.fori_loop(0, substeps, lambda i, s: pipeline.step(sys, s, u), st), None
-
-        state, _ = jax.lax.scan(interval, state, us)
-        return state.q, state.qd
-
-    return jax.jit(run), jax.jit(jax.vmap(run, in_axes=(0, 0, None)))
+    return _pair(brax_rollout(chain, DT, substeps))
 
 
 def mjx_runner(chain, substeps, integrator):
-    import mujoco
-    from mujoco import mjx
-
-    mx = mjx.put_model(mujoco.MjModel.from_xml_string(to_mjcf(chain, timestep=DT / substeps, integrator=integrator)))
-
-    def run(q0, qd0, us):
-        d = mjx.make_data(mx).replace(qpos=q0, qvel=qd0)
-
-        def interval(d, u):
-            d = d.replace(ctrl=u)
-            return jax.lax.fori_loop(0, substeps, lambda i, x: mjx.step(mx, x), d), None
-
-        d, _ = jax.lax.scan(interval, d, us)
-        return d.qpos, d.qvel
-
-    return jax.jit(run), jax.jit(jax.vmap(run, in_axes=(0, 0, None)))
+    return _pair(mjx_rollout(chain, DT, integrator, substeps))
 
 
 class MujocoRunner:
@@ -217,9 +191,7 @@ def sweep(quick: bool):
         k_brax, k_mj, k_mjx = [4, 16, 64, 256], [1, 4, 16, 64, 256], [4, 16, 64]
         mj_integrators = ["Euler", "RK4", "implicitfast"]
         mjx_integrators = ["Euler", "RK4"]
-    solvers = {"Euler": lg.Euler(), "SemiImplicitEuler": lg.SemiImplicitEuler(), "SymplecticEuler": lg.SymplecticEuler(),
-               "RK4": lg.RK4(),
-               "Tsit5": lg.Tsit5(), "Dopri5": lg.Dopri5(), "Dopri8": lg.Dopri8()}
+    solvers = {name: getattr(lg, name)() for name in k_lg}
     return k_lg, tols, k_brax, k_mj, k_mjx, mj_integrators, mjx_integrators, solvers
 
 
@@ -283,8 +255,6 @@ def plot(rows, problem, ref, path):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="reduced sweep")
-    ap.add_argument("--problems", nargs="*", default=None, help="subset of problems")
-    ap.add_argument("--no-mjx", action="store_true", help="skip MJX (slow to compile)")
     args = ap.parse_args(argv)
     results, img = outputs(args.quick)
     suffix = "_quick" if args.quick else ""
@@ -295,8 +265,6 @@ def main(argv=None):
                mujoco=mujoco.__version__, dt_control=DT, horizon_s=HORIZON, batch=BATCH, rows=[], references={})
     t0 = time.perf_counter()
     for name, (chain, q0, qd0, us) in problems().items():
-        if args.problems and name not in args.problems:
-            continue
         ref = reference(chain, q0, qd0, us)
         out["references"][name] = {k: v for k, v in ref.items() if k != "x"} | {"x": ref["x"].tolist()}
         print(f"{name}: reference self-error {ref['self_error']:.2e}", flush=True)
@@ -316,11 +284,10 @@ def main(argv=None):
             for k in k_mj:
                 rows.append(measure(name, chain, q0, qd0, us, f"{integ} h={DT / k:.3g}", "mujoco",
                                     MujocoRunner(chain, k, integ), ref, substeps=k, integrator=integ))
-        if not args.no_mjx:
-            for integ in mjx_int:
-                for k in k_mjx:
-                    rows.append(measure(name, chain, q0, qd0, us, f"{integ} h={DT / k:.3g}", "mjx",
-                                        mjx_runner(chain, k, integ), ref, substeps=k, integrator=integ))
+        for integ in mjx_int:
+            for k in k_mjx:
+                rows.append(measure(name, chain, q0, qd0, us, f"{integ} h={DT / k:.3g}", "mjx",
+                                    mjx_runner(chain, k, integ), ref, substeps=k, integrator=integ))
         plot(rows, name, ref, img / f"work_precision_{name}{suffix}.png")
     out["total_wall_s"] = time.perf_counter() - t0
     md = ["# Run time against error" + (" (--quick)" if args.quick else ""), "",
