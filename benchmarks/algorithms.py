@@ -4,49 +4,33 @@
     python -m benchmarks.algorithms --budget laptop --tasks acrobot --algos shac ppo sac brax_apg --seeds 0
     python -m benchmarks.algorithms --budget laptop --algos ce_apg --ce-apg-from runs/paper_tables/laptop
     python -m benchmarks.algorithms --budget laptop --plot-only      # table and plots from the saved runs
-    python -m benchmarks.algorithms --budget full                    # the paper's budgets, 8 seeds (days here)
     python -m benchmarks.algorithms --budget laptop --bodies brax_v1 --tasks acrobot   # on the authors' bodies
 
-Every algorithm trains on the same task objects (``lagrange.tasks.PAPER_TASKS[name].rods()``, e.g.
-``Acrobot.rods()``; the Brax trainers see them through :class:`lagrange.interop.brax.BraxEnv`, unchanged). The final
-policy of each run is evaluated *deterministically* by this script on the same 16 random starts
-(``PRNGKey(10_000 + seed)``), with the task's own 500-step return and :func:`lagrange.tasks.balanced`. Learning curves
-are deterministic evaluation returns against simulated environment steps and against wall-clock seconds since the
-start of the run (compilation and evaluation included). Brax's curves use Brax's own evaluator
-(``deterministic_eval=True``) on its own random starts. ``--bodies brax_v1`` puts every algorithm on the
-authors' Brax v1 bodies instead of this library's rods (``Acrobot.brax_v1()`` etc., the bodies the paper's
-Table I was measured on); its runs, table and plots get a ``_brax_v1`` suffix.
+Every algorithm trains on the same task objects (``lagrange.tasks.PAPER_TASKS[name].rods()``; the Brax trainers see
+them through :class:`lagrange.interop.brax.BraxEnv`, unchanged). Each run's final policy is evaluated
+deterministically here on the same 16 random starts (``PRNGKey(10_000 + seed)``), with the task's 500-step return and
+:func:`lagrange.tasks.balanced`. Learning curves: deterministic evaluation returns against simulated env steps and
+against wall-clock seconds since the run's start (compilation and evaluation included); Brax's come from Brax's own
+evaluator (``deterministic_eval=True``) on its own random starts. ``--bodies brax_v1`` puts every algorithm on the
+authors' Brax v1 bodies (``Acrobot.brax_v1()`` etc., those the paper's Table I was measured on); its runs, table and
+plots get a ``_brax_v1`` suffix.
 
-Budgets (``--budget``):
-
-* ``full`` (``FULL``): CE-APG the authors' protocol (``CEAPGConfig.paper()`` with ``GRUPolicy`` of width 16, 32 on
-  the double cartpole: 200 iterations x 4.8e6 steps); SHAC the authors' cartpole config (64 envs x 32-step windows x
-  500 epochs, 1e6 steps); PPO, SAC and Brax APG the hyperparameters of the CE-APG paper's appendix IX-C (PPO 8e7
-  steps, 512 envs, batch 256, 32 minibatches, unroll 50, 8 update epochs, discount 0.99, lr 3e-4, entropy 1e-3; SAC
-  2e6 steps, 64 envs, batch 128, discount 0.95, lr 1e-3; Brax APG 1e7 steps, 24 envs, lr 5e-4, whole 500-step
-  episodes per update).
-* ``laptop`` (``LAPTOP``): what two shared CPU cores afford: ``full`` for SHAC, SAC and Brax APG, PPO
-  with the same hyperparameters but 1.2e6 of its 8e7 steps (3 updates; ``LAPTOP_CUTS``); CE-APG this
-  project's laptop protocol, ``CEAPGConfig.laptop(task)`` with ``(sin, cos)`` observations on the acrobot
-  (``Acrobot.rods(trig=True)``; also the ``laptop`` budget of ``benchmarks/paper_tables.py`` and the examples'
-  default). ``--ce-apg-from DIR`` takes
-  CE-APG's results from the ``ce_apg_<task>_<seed>.json`` files that ``benchmarks/paper_tables.py``
-  writes instead of training (its curve is then the training fitness of the best candidate from the
-  run's checkpoint header, when the ``.eqx`` is beside it).
-* ``quick`` (``QUICK``, also ``--quick``): every budget (and PPO's batch geometry) shrunk to a smoke test;
-  the numbers it gives are not a comparison of the algorithms.
+Budgets (``--budget``): ``laptop`` (:data:`LAPTOP`), what two shared CPU cores afford: SAC and Brax APG with the
+hyperparameters and budgets of the CE-APG paper's appendix IX-C, PPO with its hyperparameters but 1.2e6 of its 8e7
+steps (:data:`LAPTOP_CUTS`), SHAC the SHAC authors' cartpole config (``SHACConfig()``, 1e6 steps), CE-APG this
+project's laptop protocol (``CEAPGConfig.laptop(task)``, ``(sin, cos)`` observations on the acrobot, the ``laptop``
+budget of ``benchmarks/paper_tables.py``); ``--ce-apg-from DIR`` reads CE-APG's results from the
+``ce_apg_<task>_<seed>.json`` files that ``benchmarks/paper_tables.py`` writes instead of training (its curve is then
+the best candidate's training fitness from the run's checkpoint header, when the ``.eqx`` is beside it). ``quick``
+(:data:`QUICK`, also ``--quick``): every budget shrunk to a smoke test, whose numbers compare nothing.
 
 Each (algorithm, task, seed) run writes its result as soon as it finishes to
-``--runs-dir/<budget>/<algo>_<task>_<seed>.json`` and is skipped when that file exists, so a killed
-benchmark resumes where it stopped (``--force`` redoes the selected runs). The table and plots are made
-from every run file of the budget, selected now or earlier. Each run also records its process CPU seconds
-and the load average, since on a shared machine the wall-clock is inflated by other processes.
-
-Writes the table to ``benchmarks/results/algorithms_laptop[_brax_v1].json`` and ``.md`` and one plot per task to
-``docs/img/algorithms_laptop[_brax_v1]_<task>.png`` (curves against env steps and against wall-clock); the ``full``
-budget drops ``_laptop``; ``--quick`` writes ``algorithms_quick*`` under ``runs/benchmarks/``, not published.
-The published tables and plots are regenerated from the saved runs by ``--budget laptop --plot-only`` (and the same
-with ``--bodies brax_v1``).
+``--runs-dir/<budget>/<algo>_<task>_<seed>.json`` and is skipped when that file exists, so a killed benchmark resumes
+where it stopped (``--force`` redoes the selected runs); it records its process CPU seconds and the load average (a
+shared machine inflates the wall-clock). The table and plots are made from every run file of the budget:
+``benchmarks/results/algorithms_laptop[_brax_v1].{json,md}`` and ``docs/img/algorithms_laptop[_brax_v1]_<task>.png``
+(curves against env steps and against wall-clock); ``--quick`` writes ``algorithms_quick*`` under ``runs/benchmarks/``,
+not published. ``--plot-only`` regenerates them from the saved runs (on a fresh clone, restored from the JSON).
 """
 
 from __future__ import annotations
@@ -68,8 +52,7 @@ import numpy as np  # noqa: E402
 
 from benchmarks._cli import (add_bodies_flag, bodies_marker, bodies_suffix, marked_bodies, outputs,  # noqa: E402
                              paper_task)
-from lagrange.tasks import balanced  # noqa: E402
-from optim import CEAPGConfig, SHACConfig, episode  # noqa: E402
+from optim import CEAPGConfig, SHACConfig, evaluate  # noqa: E402
 from optim.checkpoint import FORMAT as CHECKPOINT_FORMAT, write_json, write_text  # noqa: E402
 from policies import GRUPolicy  # noqa: E402
 from policies.actor_critic import Actor  # noqa: E402
@@ -86,18 +69,6 @@ PAPER = {
     "ppo": {"cartpole": (-464, 223), "acrobot": (405, 927), "double_cartpole": (4249, 549)},
     "sac": {"cartpole": (-2274, 1000), "acrobot": (359, 159), "double_cartpole": (-3.9e5, 4.9e6)},
     "brax_apg": {"cartpole": (-3485, 819), "acrobot": (1949, 814), "double_cartpole": (-1982, 4056)},
-}
-
-FULL = {
-    "ce_apg": {},  # CEAPGConfig.paper(), GRU width 16 (32 on the double cartpole)
-    "shac": {},  # SHACConfig defaults (the SHAC authors' config) and Actor.for_task(task), the task's 500-step episodes
-    "ppo": dict(num_timesteps=80_000_000, num_envs=512, batch_size=256, num_minibatches=32, unroll_length=50,
-                num_updates_per_batch=8, discounting=0.99, learning_rate=3e-4, entropy_cost=1e-3,
-                normalize_observations=True, num_evals=20),
-    "sac": dict(num_timesteps=2_000_000, num_envs=64, batch_size=128, discounting=0.95, learning_rate=1e-3,
-                normalize_observations=True, num_evals=20),
-    "brax_apg": dict(env_steps=10_000_000, num_envs=24, learning_rate=5e-4, horizon_length=HORIZON,
-                     normalize_observations=True, num_evals=20),
 }
 
 # LAPTOP cuts, measured on the acrobot with two CPU cores shared by four to six training processes (this
@@ -120,14 +91,18 @@ QUICK = {
                      normalize_observations=True, num_evals=3),
 }
 
-# ``per_task`` entries override a budget for one task (merged by :func:`budget_for`).
 LAPTOP = {
     # this project's laptop protocol (benchmarks/paper_tables.py --budget laptop): 1.8e8 steps, hours here
     "ce_apg": dict(preset="laptop"),  # CEAPGConfig.laptop(task), (sin, cos) observations on the acrobot
-    "shac": {},  # the SHAC authors' config as in FULL
-    "ppo": dict(FULL["ppo"], num_timesteps=PPO_LAPTOP_STEPS, num_evals=4),
-    "sac": dict(FULL["sac"]),  # the paper's 2e6 steps
-    "brax_apg": dict(FULL["brax_apg"]),  # the paper's 1e7 steps
+    "shac": {},  # SHACConfig defaults (the SHAC authors' config) and Actor.for_task(task), the task's 500-step episodes
+    # the CE-APG paper's appendix IX-C; PPO cut from its 8e7 steps
+    "ppo": dict(num_timesteps=PPO_LAPTOP_STEPS, num_envs=512, batch_size=256, num_minibatches=32, unroll_length=50,
+                num_updates_per_batch=8, discounting=0.99, learning_rate=3e-4, entropy_cost=1e-3,
+                normalize_observations=True, num_evals=4),
+    "sac": dict(num_timesteps=2_000_000, num_envs=64, batch_size=128, discounting=0.95, learning_rate=1e-3,
+                normalize_observations=True, num_evals=20),
+    "brax_apg": dict(env_steps=10_000_000, num_envs=24, learning_rate=5e-4, horizon_length=HORIZON,
+                     normalize_observations=True, num_evals=20),
 }
 LAPTOP_CUTS = {
     "ce_apg": "CEAPGConfig.laptop(task): 1.8e8 (acrobot), 7.2e7 (cartpole), 9e7 (double cartpole) of the paper's "
@@ -137,15 +112,7 @@ LAPTOP_CUTS = {
            "hyperparameters)",
 }
 
-BUDGETS = {"quick": QUICK, "laptop": LAPTOP, "full": FULL}
-TAGS = {"quick": "algorithms_quick", "laptop": "algorithms_laptop", "full": "algorithms"}
-
-
-def budget_for(budgets: dict, algo: str, task: str) -> dict:
-    """``budgets[algo]`` with its ``per_task[task]`` overrides merged in (and ``per_task`` removed)."""
-    b = dict(budgets[algo])
-    overrides = b.pop("per_task", {}).get(task, {})
-    return {**b, **overrides}
+BUDGETS = {"quick": QUICK, "laptop": LAPTOP}
 
 
 class _BraxPolicy:
@@ -164,11 +131,7 @@ class _BraxPolicy:
 
 
 def _evaluate(task, policy, normalizer, seed):
-    @jax.jit
-    def run(key):
-        eps = jax.vmap(lambda k: episode(task, policy, normalizer, k))(jax.random.split(key, EVAL_EPISODES))
-        return eps.ret, balanced(task, eps.q)
-
+    run = jax.jit(lambda key: evaluate(task, policy, normalizer, key, EVAL_EPISODES))
     rets, bal = jax.device_get(run(jax.random.PRNGKey(10_000 + seed)))
     return np.asarray(rets, float), np.asarray(bal, bool)
 
@@ -239,22 +202,17 @@ def _run_brax(kind, name, seed, budget, bodies="rods"):
     curve = []
     t0 = time.perf_counter()
     common = dict(environment=env, episode_length=HORIZON, seed=seed, deterministic_eval=True, num_eval_envs=16)
+    per_eval = 1  # env steps per step Brax reports
     if kind == "ppo":
-        from brax.training.agents.ppo import train as ppo
+        from brax.training.agents.ppo.train import train as fn
 
         steps_total = budget["num_timesteps"]
-        fn = ppo.train
-        progress = lambda step, m: curve.append((float(step), time.perf_counter() - t0,
-                                                 float(m["eval/episode_reward"])))
     elif kind == "sac":
-        from brax.training.agents.sac import train as sac
+        from brax.training.agents.sac.train import train as fn
 
         steps_total = budget["num_timesteps"]
-        fn = sac.train
-        progress = lambda step, m: curve.append((float(step), time.perf_counter() - t0,
-                                                 float(m["eval/episode_reward"])))
     else:
-        from brax.training.agents.apg import train as apg
+        from brax.training.agents.apg.train import train as fn
 
         per_update = budget["num_envs"] * budget["horizon_length"]
         updates = max(1, int(budget.pop("env_steps")) // per_update)
@@ -263,9 +221,8 @@ def _run_brax(kind, name, seed, budget, bodies="rods"):
         # evaluation index as its step; convert to simulated steps.
         per_eval = int(round(updates / max(budget["num_evals"] - 1, 1))) * per_update
         steps_total = per_eval * max(budget["num_evals"] - 1, 1)
-        fn = apg.train
-        progress = lambda step, m: curve.append((float(step) * per_eval, time.perf_counter() - t0,
-                                                 float(m["eval/episode_reward"])))
+    progress = lambda step, m: curve.append((float(step) * per_eval, time.perf_counter() - t0,  # noqa: E731
+                                             float(m["eval/episode_reward"])))
     try:
         with brax_training_compat():
             make_policy, params, _ = fn(**common, **budget, progress_fn=progress)
@@ -298,23 +255,19 @@ def _run_path(runs_dir, algo, task, seed):
 def train_one(algo, task, seed, budget, budget_name, bodies="rods"):
     """Train and evaluate one (algorithm, task on ``bodies``, seed); returns the run's result dict."""
     load0, cpu0, t0 = os.getloadavg(), time.process_time(), time.perf_counter()
-    marker = bodies_marker(bodies)
     try:
         rets, bal, curve, steps, wall = RUNNERS[algo](task, seed, budget, bodies)
+        result = {"return": float(rets.mean()), "returns": rets.tolist(), "balanced_fraction": float(bal.mean()),
+                  "balanced": bool(bal.all()), "env_steps": float(steps), "wall_clock": float(wall)}
     except Diverged as e:  # recorded as a failed seed, not retried
-        return {"algo": algo, "task": task, "seed": seed, "budget": budget_name, "source": "trained",
-                "failed": f"diverged: {e}; last evaluation return {e.curve[-1][2] if e.curve else None}",
-                "return": None, "returns": None,
-                "balanced_fraction": 0.0, "balanced": False, "env_steps": None,
-                "wall_clock": time.perf_counter() - t0, "cpu_seconds": time.process_time() - cpu0,
-                "loadavg_start": list(load0), "loadavg_end": list(os.getloadavg()), "config": budget,
-                "curve": e.curve, "curve_kind": "evaluation", **marker}
-    return {"algo": algo, "task": task, "seed": seed, "budget": budget_name, "source": "trained",
-            "return": float(rets.mean()), "returns": rets.tolist(), "balanced_fraction": float(bal.mean()),
-            "balanced": bool(bal.all()), "env_steps": float(steps), "wall_clock": float(wall),
+        curve = e.curve
+        result = {"failed": f"diverged: {e}; last evaluation return {curve[-1][2] if curve else None}",
+                  "return": None, "returns": None, "balanced_fraction": 0.0, "balanced": False, "env_steps": None,
+                  "wall_clock": time.perf_counter() - t0}
+    return {"algo": algo, "task": task, "seed": seed, "budget": budget_name, "source": "trained", **result,
             "cpu_seconds": time.process_time() - cpu0, "loadavg_start": list(load0),
             "loadavg_end": list(os.getloadavg()), "config": budget, "curve": curve, "curve_kind": "evaluation",
-            **marker}
+            **bodies_marker(bodies)}
 
 
 def import_ce_apg(task, seed, src_dir, bodies="rods"):
@@ -385,7 +338,7 @@ def load_runs(runs_dir):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--budget", choices=tuple(BUDGETS), default=None, help="quick | laptop | full (default full)")
+    p.add_argument("--budget", choices=tuple(BUDGETS), default=None, help="quick | laptop (default laptop)")
     p.add_argument("--quick", action="store_true", help="same as --budget quick")
     p.add_argument("--seeds", nargs="+", type=int, default=None,
                    help="seeds to run (default: 0 with the quick budget, else 0..7)")
@@ -403,13 +356,13 @@ def main(argv=None):
     args = p.parse_args(argv)
     if args.quick and args.budget not in (None, "quick"):
         raise SystemExit(f"--quick contradicts --budget {args.budget}")
-    budget_name = "quick" if args.quick else (args.budget or "full")
+    budget_name = "quick" if args.quick else (args.budget or "laptop")
     seeds = args.seeds if args.seeds is not None else ([0] if budget_name == "quick" else list(range(8)))
     if any(s < 0 for s in seeds):
         raise SystemExit(f"--seeds must be >= 0, got {seeds}")
     budgets = BUDGETS[budget_name]
     suffix = bodies_suffix(args.bodies)
-    tag = TAGS[budget_name] + suffix
+    tag = f"algorithms_{budget_name}{suffix}"
     runs_dir = os.path.join(args.runs_dir, budget_name + suffix)
     out, img = (args.out, args.out) if args.out else outputs(budget_name == "quick")
     os.makedirs(runs_dir, exist_ok=True)
@@ -431,7 +384,7 @@ def main(argv=None):
                     continue
                 else:
                     print(f"{task:16s} {LABELS[algo]:9s} seed {seed} ...", flush=True)
-                    run = train_one(algo, task, seed, budget_for(budgets, algo, task), budget_name, args.bodies)
+                    run = train_one(algo, task, seed, dict(budgets[algo]), budget_name, args.bodies)
                 write_json(path, run)
                 if run.get("failed"):
                     print(f"{task:16s} {LABELS[algo]:9s} seed {seed}: FAILED {run['failed']}", flush=True)
@@ -468,8 +421,7 @@ def _bodies_sentence(results):
 
 def write_table(results, path):
     budget = results["meta"]["budget"]
-    what = {"quick": "QUICK smoke-scale budgets", "laptop": "LAPTOP budgets, cut from the paper's where noted",
-            "full": "full budgets"}[budget]
+    what = {"quick": "QUICK smoke-scale budgets", "laptop": "LAPTOP budgets, cut from the paper's where noted"}[budget]
     lines = [f"Final deterministic return over {EVAL_EPISODES} random starts, mean +- std over seeds ({what}); "
              "balanced episodes = fraction of evaluation episodes that end balanced (`lagrange.tasks.balanced`), "
              "balanced seeds = fraction of seeds whose every evaluation episode does; CPU share = process CPU "
@@ -561,7 +513,7 @@ def plot_task(name, algos, path, budget, bodies="rods"):
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, loc="lower right")
     note = {"quick": " (QUICK smoke-scale budgets, not a comparison)",
-            "laptop": " (LAPTOP budgets; dotted: paper Table I)", "full": " (dotted: paper Table I)"}[budget]
+            "laptop": " (LAPTOP budgets; dotted: paper Table I)"}[budget]
     fig.suptitle(f"{name}{'' if bodies == 'rods' else f' on the {bodies} bodies'}{note}")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
