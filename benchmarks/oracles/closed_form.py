@@ -348,35 +348,16 @@ def rollout(fd: Callable, params, q0, qd0, controls, dt, substeps: int = 1):
 
 
 def _system(params, mass_matrix, bias, gravity, forward_dynamics):
-    return SimpleNamespace(
-        Params=params,
-        mass_matrix=mass_matrix,
-        bias=bias,
-        gravity=gravity,
-        forward_dynamics=forward_dynamics,
-    )
+    return SimpleNamespace(Params=params, mass_matrix=mass_matrix, bias=bias, gravity=gravity,
+                           forward_dynamics=forward_dynamics)
 
 
-pendulum = _system(
-    PendulumParams, pendulum_mass_matrix, pendulum_bias, pendulum_gravity, pendulum_forward_dynamics
-)
-cartpole = _system(
-    CartpoleParams, cartpole_mass_matrix, cartpole_bias, cartpole_gravity, cartpole_forward_dynamics
-)
+pendulum = _system(PendulumParams, pendulum_mass_matrix, pendulum_bias, pendulum_gravity, pendulum_forward_dynamics)
+cartpole = _system(CartpoleParams, cartpole_mass_matrix, cartpole_bias, cartpole_gravity, cartpole_forward_dynamics)
 acrobot = _system(AcrobotParams, acrobot_mass_matrix, acrobot_bias, acrobot_gravity, acrobot_forward_dynamics)
-double_cartpole = _system(
-    DoubleCartpoleParams,
-    double_cartpole_mass_matrix,
-    double_cartpole_bias,
-    double_cartpole_gravity,
-    double_cartpole_forward_dynamics,
-)
+double_cartpole = _system(DoubleCartpoleParams, double_cartpole_mass_matrix, double_cartpole_bias,
+                          double_cartpole_gravity, double_cartpole_forward_dynamics)
 """``closed_form.<system>.mass_matrix(params, q)``, ``.bias(params, q, qd)``, ``.gravity(params, q)``,
 ``.forward_dynamics(params, q, qd, u)`` and ``.Params()`` (the defaults of ``lagrange.systems``)."""
 
-SYSTEMS = {
-    "pendulum": pendulum,
-    "cartpole": cartpole,
-    "acrobot": acrobot,
-    "double_cartpole": double_cartpole,
-}
+SYSTEMS = {"pendulum": pendulum, "cartpole": cartpole, "acrobot": acrobot, "double_cartpole": double_cartpole}
