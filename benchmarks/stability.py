@@ -40,7 +40,6 @@ import numpy as np  # noqa: E402
 
 import lagrange as lg  # noqa: E402
 from benchmarks._cli import markdown_table, outputs  # noqa: E402
-from lagrange.dynamics import _forward  # noqa: E402  (simulate's vector field: no raise on a singular M)
 from optim.checkpoint import write_json  # noqa: E402
 
 
@@ -172,7 +171,7 @@ def _adaptive_rollout(chain, q0, qd0, dt, steps, rtol, atol, max_steps):
     shape ``(steps + 1, n)``; the accepted and rejected steps summed over the intervals; the most steps one interval
     took; whether an interval reached ``max_steps``; whether an interval's result was not successful at all."""
     u = jnp.zeros((chain.m,), q0.dtype)
-    term = diffrax.ODETerm(lambda t, y, u: (y[1], _forward(chain, y[0], y[1], u)))
+    term = diffrax.ODETerm(lambda t, y, u: (y[1], lg.forward_dynamics(chain, y[0], y[1], u, check=False)))
     controller = diffrax.PIDController(rtol=rtol, atol=atol)
 
     def solve(y):
