@@ -25,11 +25,17 @@ __all__ = ["APGConfig", "APGState", "make_trainer"]
 
 @dataclasses.dataclass(frozen=True)
 class APGConfig(AlgorithmConfig):
-    """Plain APG settings.
+    """Plain APG settings: one policy, Adam on gradients back-propagated through whole episodes.
 
-    Fields: ``iterations`` host-loop iterations of ``steps_per_iteration`` Adam steps each; ``episodes``
-    random-start episodes per step; ``learning_rate`` constant Adam step size; ``normalize`` running observation
-    normalisation; ``truncation`` optional truncated-BPTT window.
+    Attributes:
+        iterations (int): host-loop iterations, >= 1.
+        steps_per_iteration (int): Adam steps per iteration, >= 1 (the Adam state carries across iterations).
+        episodes (int): random-start episodes per step, >= 1.
+        learning_rate (float): Adam's constant step size, > 0.
+        normalize (bool): running observation normalisation (clipped to +-5 standard deviations).
+        truncation (int | None): truncated-BPTT window in control steps, >= 1; None: the whole episode.
+        max_grad_norm (float | None): rescale each gradient to at most this global 2-norm before Adam, > 0; None
+            clips nothing.
     """
 
     iterations: int = 20
@@ -53,11 +59,27 @@ class APGConfig(AlgorithmConfig):
             check_positive(c, "max_grad_norm", self.max_grad_norm)
 
     def make_trainer(self, task: AbstractTask, policy, *, objective: Callable | None = None) -> Trainer:
+        """:func:`optim.apg.make_trainer` of this config.
+
+        Args:
+            task: the task to train on, and the one the trainer evaluates.
+            policy: the policy module, its architecture (the algorithm draws the initial weights from the run's key).
+            objective: the loss of a batch of episodes each APG step minimises (default :func:`optim.mean_return_loss`,
+                minus the mean return).
+        """
         return make_trainer(self, task, policy, objective=objective)
 
 
 class APGState(NamedTuple):
-    """APG's training state: parameters ``(P,)``, Adam's state, the normaliser, the run's key, iterations done."""
+    """APG's training state (``P`` flat policy parameters).
+
+    Attributes:
+        params (Float[Array, "P"]): the policy's parameters.
+        opt_state: Adam's state (``optax.scale_by_adam``'s).
+        normalizer (Normalizer | None): the observation normaliser (None without normalisation).
+        key (PRNGKeyArray): the run's key; iteration ``i`` draws from ``fold_in(key, i)``.
+        iteration (Int[Array, ""]): iterations done, int32.
+    """
 
     params: Float[Array, " P"]
     opt_state: Any
@@ -67,7 +89,19 @@ class APGState(NamedTuple):
 
 
 def make_trainer(config: APGConfig, task: AbstractTask, policy, *, objective: Callable | None = None) -> Trainer:
-    """APG on ``task`` from ``policy.reinit(fold_in(key, 0x5EED))``."""
+    """APG on ``task``, starting from ``policy.reinit(fold_in(key, 0x5EED))``.
+
+    Args:
+        config: the settings.
+        task: the task to train on, and the one the trainer evaluates.
+        policy: the policy module, its architecture (the algorithm draws the initial weights from the run's key).
+        objective: the loss of a batch of episodes each APG step minimises (default :func:`optim.mean_return_loss`,
+            minus the mean return).
+
+    Returns:
+        The :class:`optim.Trainer`; its metrics: ``best_return`` and ``mean_return`` (of the last 5 batches),
+        ``nonfinite`` (1 when an update was skipped), ``env_steps``.
+    """
     objective = mean_return_loss if objective is None else objective
     _, unravel = flatten_policy(policy)
     adam = optax.scale_by_adam()

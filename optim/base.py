@@ -30,7 +30,9 @@ class Trainer(NamedTuple):
     Attributes:
         init: ``init(key) -> state``; the state holds the run's key and its ``iteration`` count.
         update: ``update(state) -> (state, metrics)``, one jitted iteration; ``metrics`` is a dict of scalars with
-            at least ``env_steps`` (simulated control steps of the iteration) and ``nonfinite`` (updates skipped).
+            at least ``env_steps`` (simulated control steps of the iteration) and ``nonfinite`` (updates skipped),
+            and for a population a ``nonfinite_members`` bool mask (which members went non-finite; SHAC:
+            ``nonfinite_envs``).
         policy: ``policy(state, which="best") -> (policy module, normaliser or None)``, the deterministic policy to
             evaluate (``which="mean"``: the search distribution's mean, for the CE methods).
         task: the task it trains on.
@@ -47,15 +49,24 @@ class Trainer(NamedTuple):
 
 
 class AlgorithmConfig(abc.ABC):
-    """Base of the algorithms' configs (frozen dataclasses of settings; every one has ``iterations``)."""
+    """Base of the algorithms' configs, frozen dataclasses of settings.
+
+    Attributes:
+        iterations (int): the run's host iterations (CE iterations, epochs...), every config has it.
+    """
 
     iterations: int
 
     @abc.abstractmethod
     def make_trainer(self, task, policy, *, objective: Callable | None = None) -> Trainer:
-        """The :class:`Trainer` of this algorithm on ``task`` with ``policy`` (a module: its architecture; the
-        algorithm draws the initial weights from the run's key). ``objective``: the loss of an episode batch for the
-        algorithms built on :func:`optim.apg_steps` (default: minus the mean return)."""
+        """The :class:`Trainer` of this algorithm.
+
+        Args:
+            task: the task to train on, and the one the trainer evaluates.
+            policy: the policy module, its architecture (the algorithm draws the initial weights from the run's key).
+            objective: the loss of an episode batch, for the algorithms built on :func:`optim.apg_steps` (default:
+                minus the mean return).
+        """
 
 
 def config_to_dict(cfg: AlgorithmConfig) -> dict:
@@ -131,8 +142,15 @@ def _subclasses(cls):
 
 
 def scan_train(trainer: Trainer, iterations: int | None = None):
-    """``train(key) -> (final state, stacked metrics)``: ``iterations`` (default: the config's) of ``trainer.update``
-    as one jittable function, for ``jax.vmap`` over seeds or a run without a host loop."""
+    """A whole run as one jittable function, for ``jax.vmap`` over seeds or a run without a host loop.
+
+    Args:
+        trainer: the algorithm bound to its task and policy.
+        iterations: how many ``trainer.update`` (default: the config's ``iterations``).
+
+    Returns:
+        ``train(key) -> (final state, metrics stacked over the iterations)``.
+    """
     iterations = trainer.config.iterations if iterations is None else iterations
 
     def train(key):

@@ -22,7 +22,14 @@ __all__ = ["APGResult", "apg_steps", "mean_return_loss", "flatten_policy"]
 
 
 def flatten_policy(policy) -> tuple[Float[Array, " P"], Callable[[Array], Any]]:
-    """``(flat (P,), unravel)``: the policy's array leaves as one vector, and the function that rebuilds the module."""
+    """The policy's array leaves as one vector, and the function that rebuilds the module from one.
+
+    Args:
+        policy: an equinox module.
+
+    Returns:
+        ``(flat, unravel)``: the parameters, shape ``(P,)``, and ``unravel(x) -> module`` for any ``x`` of that shape.
+    """
     arrays, static = eqx.partition(policy, eqx.is_array)
     flat, unravel_arrays = ravel_pytree(arrays)
 
@@ -33,7 +40,14 @@ def flatten_policy(policy) -> tuple[Float[Array, " P"], Callable[[Array], Any]]:
 
 
 def mean_return_loss(episodes: Episode) -> Float[Array, ""]:
-    """The default objective: minus the mean return of a batch of episodes (leaves with a leading batch axis)."""
+    """The default objective: minus the mean return of a batch of episodes.
+
+    Args:
+        episodes: an :class:`optim.Episode` whose leaves have a leading batch axis.
+
+    Returns:
+        ``-mean(episodes.ret)``, a scalar.
+    """
     return -jnp.mean(episodes.ret)
 
 
@@ -73,6 +87,27 @@ def apg_steps(task: AbstractTask, unravel: Callable[[Array], Any], params: Float
     If an objective value or gradient goes non-finite, that update and every later one is skipped and ``finite`` is
     false. No gradient clipping by default (as the authors ran it); ``max_grad_norm`` rescales a gradient whose
     global 2-norm exceeds it to that norm before Adam sees it. ``grad_norms`` records each step's norm either way.
+
+    Args:
+        task: the task.
+        unravel: ``unravel(params) -> policy`` (:func:`flatten_policy`).
+        params: the starting parameters, shape ``(P,)``.
+        normalizer: the observation normaliser, or None.
+        key: PRNG key of the episodes' starts.
+        steps: Adam steps, >= 1.
+        episodes: random-start episodes per step, >= 1.
+        learning_rate: Adam's step size, a float or a traced scalar.
+        truncation: truncated-BPTT window in control steps, or None for the whole episode.
+        objective: ``objective(episodes) -> loss`` of a batch (default :func:`mean_return_loss`).
+        opt_state: an ``optax.scale_by_adam`` state to continue, or None for a fresh one.
+        update_normalizer: whether the normaliser absorbs each batch's observations.
+        max_grad_norm: the largest global gradient 2-norm let through, > 0, or None.
+
+    Returns:
+        An :class:`APGResult`.
+
+    Raises:
+        ValueError: for ``max_grad_norm <= 0``.
     """
     adam = optax.scale_by_adam()
 

@@ -145,9 +145,13 @@ class CEAPGConfig(InnerAPGConfig):
                           self.warmup_upright)
 
     def with_iterations(self, iterations: int) -> "CEAPGConfig":
-        """The same protocol over ``iterations`` CE iterations. The learning-rate schedule spans ``iterations``
+        """The same protocol over another number of CE iterations. The learning-rate schedule spans ``iterations``
         and so compresses by itself; the warm-up compresses in proportion
-        (:meth:`optim.curriculum.Curriculum.compressed`)."""
+        (:meth:`optim.curriculum.Curriculum.compressed`).
+
+        Args:
+            iterations: the new iteration count, >= 1.
+        """
         short = self.curriculum.compressed(self.iterations, iterations)
         return dataclasses.replace(self, iterations=iterations, warmup_horizons=short.warmup_horizons,
                                    warmup_iterations=short.warmup_iterations)
@@ -158,26 +162,49 @@ class CEAPGConfig(InnerAPGConfig):
         return self.curriculum.stages
 
     def stage(self, iteration: Int[ArrayLike, ""]) -> Int[Array, ""]:
-        """:meth:`optim.curriculum.Curriculum.stage` of the 0-based ``iteration``."""
+        """The curriculum stage (:meth:`optim.curriculum.Curriculum.stage`).
+
+        Args:
+            iteration: the 0-based iteration, an int or a traced integer.
+        """
         return self.curriculum.stage(iteration)
 
     def training_horizon(self, iteration: int, horizon: int) -> int:
-        """:meth:`optim.curriculum.Curriculum.training_horizon`: the episode length candidates train on at the
-        0-based ``iteration`` of a task of ``horizon`` control steps."""
+        """The episode length candidates train on (:meth:`optim.curriculum.Curriculum.training_horizon`).
+
+        Args:
+            iteration: the 0-based iteration.
+            horizon: the task's episode length in control steps.
+        """
         return self.curriculum.training_horizon(iteration, horizon)
 
     def env_steps_per_iteration(self, horizon: int, iteration: int | None = None) -> int:
-        """Simulated control steps of one iteration on a task of ``horizon`` steps (of the 0-based ``iteration``,
-        whose warm-up stage may shorten the episodes)."""
+        """Simulated control steps of one iteration.
+
+        Args:
+            horizon: the task's episode length in control steps.
+            iteration: the 0-based iteration, whose warm-up stage may shorten the episodes; None: the task's horizon.
+        """
         h = horizon if iteration is None else self.training_horizon(iteration, horizon)
         return self.num_candidates * max(self.apg_steps, 1) * self.episodes * h
 
     def total_env_steps(self, horizon: int) -> int:
-        """Simulated control steps of the whole run on a task of ``horizon`` steps."""
+        """Simulated control steps of the whole run.
+
+        Args:
+            horizon: the task's episode length in control steps.
+        """
         return sum(self.env_steps_per_iteration(horizon, i) for i in range(self.iterations))
 
     def make_trainer(self, task: AbstractTask, policy, *, objective: Callable | None = None) -> Trainer:
-        """:func:`optim.ce_apg.make_trainer` of this config."""
+        """:func:`optim.ce_apg.make_trainer` of this config.
+
+        Args:
+            task: the task to train on, and the one the trainer evaluates.
+            policy: the policy module, its architecture (the algorithm draws the initial weights from the run's key).
+            objective: the loss of a batch of episodes each APG step minimises (default :func:`optim.mean_return_loss`,
+                minus the mean return).
+        """
         return make_trainer(self, task, policy, objective=objective)
 
 
@@ -205,7 +232,12 @@ class CEState(NamedTuple):
 
 def training_tasks(config: CEAPGConfig, task: AbstractTask) -> list[AbstractTask]:
     """The tasks candidates train and are scored on, one per curriculum stage
-    (:meth:`optim.curriculum.Curriculum.tasks` of ``config.curriculum``); errors name ``config``'s class."""
+    (:meth:`optim.curriculum.Curriculum.tasks` of ``config.curriculum``).
+
+    Args:
+        config: the settings (errors name its class).
+        task: the task as given.
+    """
     return config.curriculum.tasks(task, owner=type(config).__name__)
 
 

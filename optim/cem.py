@@ -15,8 +15,14 @@ __all__ = ["CEMConfig"]
 
 @dataclasses.dataclass(frozen=True)
 class CEMConfig(CEAPGConfig):
-    """The paper's CEM ablation: :class:`optim.CEAPGConfig` with ``apg_steps = 0`` (required), 2000 iterations and
-    fitness = the mean return of the candidate's ``episodes`` episodes."""
+    """The paper's CEM ablation: :class:`optim.CEAPGConfig` with no APG steps; a candidate's fitness is the mean return
+    of its ``episodes`` episodes. The other fields are :class:`optim.CEAPGConfig`'s.
+
+    Attributes:
+        iterations (int): CE iterations (paper: 2000).
+        apg_steps (int): must be 0.
+        fitness_window (int): 1 (one batch of episodes per candidate).
+    """
 
     iterations: int = 2000
     apg_steps: int = 0

@@ -87,8 +87,12 @@ def check_writable(path: str | os.PathLike, *, what: str = "checkpoint") -> None
 
 
 def write_text(path: str | os.PathLike, text: str) -> None:
-    """Write ``text`` to ``path`` atomically (a kill mid-write leaves the old file, or none); the folder is created
-    if missing."""
+    """Write text atomically: a kill mid-write leaves the old file, or none.
+
+    Args:
+        path: the file; its folder is created if missing.
+        text: what to write (UTF-8).
+    """
     _write_atomically(path, text.encode(), prefix=".write-")
 
 
@@ -106,8 +110,11 @@ def write_json(path: str | os.PathLike, obj, *, indent: int = 1, strict: bool = 
 
 
 def strict_json(obj):
-    """``obj`` with every non-finite float (NaN, +-inf) replaced by None, recursively through dicts, lists and
-    tuples: what strict JSON can hold."""
+    """What strict JSON can hold: every non-finite float (NaN, +-inf) replaced by None.
+
+    Args:
+        obj: a JSON-able object (dicts, lists and tuples are gone through recursively; tuples become lists).
+    """
     if isinstance(obj, float) and not math.isfinite(obj):
         return None
     if isinstance(obj, dict):
@@ -145,6 +152,9 @@ def _umask() -> int:
 def read_header(path: str | os.PathLike) -> dict:
     """The JSON header of a checkpoint (its ``digest`` unchecked: :func:`load` checks it).
 
+    Args:
+        path: the file.
+
     Raises:
         CheckpointError: if ``path`` is not a checkpoint of this format version.
     """
@@ -169,7 +179,14 @@ def _parse_header(path: str, line: bytes) -> dict:
 
 
 def nan_leaves(tree) -> list[str]:
-    """The paths (``jax.tree_util.keystr``) of the leaves of ``tree`` that hold a NaN."""
+    """Where a pytree holds a NaN.
+
+    Args:
+        tree: a pytree of arrays.
+
+    Returns:
+        The paths (``jax.tree_util.keystr``) of the floating leaves that hold a NaN.
+    """
     out = []
     for path, leaf in jax.tree_util.tree_flatten_with_path(tree)[0]:
         a = np.asarray(leaf)

@@ -245,8 +245,12 @@ def prepare_run(out: str, config: AlgorithmConfig, *, resume: bool, overwrite: b
 
 
 def write_results(path: str, results: dict) -> dict:
-    """Write ``results`` atomically as strict JSON: a non-finite number (a NaN return) becomes ``null``, and a
+    """Write a run's results atomically as strict JSON: a non-finite number (a NaN return) becomes ``null``, and a
     warning on stderr names where.
+
+    Args:
+        path: the file (``results.json``).
+        results: the results, a JSON-able dict.
 
     Returns:
         What was written.
@@ -269,10 +273,17 @@ def _null_paths(raw, clean, prefix="") -> list[str]:
 
 def learning_curve(history: list[dict], curve: list[dict], path: str, *, title: str,
                    paper_return: float | None = None) -> None:
-    """Draw a run (``history`` and ``curve`` of :func:`optim.train`) to ``path`` (PNG) against simulated steps: the
-    fitness metrics the algorithm records (CE-APG's best candidate, elite mean and all finite candidates; SHAC's
-    stochastic training episodes), the deterministic evaluations where there are any, and ``paper_return`` as a
-    dashed line."""
+    """Draw a run against simulated steps: the fitness metrics the algorithm records (CE-APG's best candidate, elite
+    mean and all finite candidates; SHAC's stochastic training episodes), the deterministic evaluations where there
+    are any, and the paper's return as a dashed line.
+
+    Args:
+        history: :attr:`optim.TrainResult.history`.
+        curve: :attr:`optim.TrainResult.curve`.
+        path: the PNG file.
+        title: the plot's title.
+        paper_return: the paper's return, or None.
+    """
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(6, 4))

@@ -83,19 +83,30 @@ class Curriculum:
         return self.stages * self.warmup_iterations
 
     def stage(self, iteration: Int[ArrayLike, ""]) -> Int[Array, ""]:
-        """The stage of the 0-based ``iteration`` (an int or a traced integer): ``i < stages`` trains on
-        ``warmup_horizons[i]``, ``stages`` on the task itself."""
+        """The stage of an iteration: ``i < stages`` trains on ``warmup_horizons[i]``, ``stages`` on the task.
+
+        Args:
+            iteration: the 0-based iteration, an int or a traced integer.
+        """
         return jnp.minimum(iteration // self.warmup_iterations, self.stages)
 
     def training_horizon(self, iteration: int, horizon: int) -> int:
-        """The episode length [control steps] candidates train on at the 0-based ``iteration``: a warm-up horizon,
-        then the task's ``horizon``."""
+        """The episode length [control steps] candidates train on: a warm-up horizon, then the task's.
+
+        Args:
+            iteration: the 0-based iteration.
+            horizon: the task's episode length in control steps.
+        """
         return (*self.warmup_horizons, horizon)[int(self.stage(iteration))]
 
     def compressed(self, planned: int, iterations: int) -> Curriculum:
-        """The same curriculum for a run of ``iterations`` instead of ``planned`` iterations: each warm-up stage
-        keeps its share (``warmup_iterations * iterations // planned``), and the warm-up is dropped when that is
-        less than one iteration."""
+        """The same curriculum for a shorter or longer run: each warm-up stage keeps its share
+        (``warmup_iterations * iterations // planned``), and the warm-up is dropped when that is less than one.
+
+        Args:
+            planned: the iterations the curriculum was made for.
+            iterations: the run's iterations.
+        """
         if not self.warmup_horizons:
             return self
         per_stage = self.warmup_iterations * iterations // planned

@@ -34,6 +34,12 @@ def use_cpu_cores(n: int | None = None) -> int:
 
     A device count already given in ``XLA_FLAGS`` (``--xla_force_host_platform_device_count``) wins. If JAX has
     already run a computation the count can no longer change: this warns and returns the current count.
+
+    Args:
+        n: the CPU devices, an integer >= 1; None: one per core (:func:`cpu_core_count`).
+
+    Raises:
+        ValueError: for another ``n``.
     """
     import jax
 
@@ -57,8 +63,12 @@ def use_cpu_cores(n: int | None = None) -> int:
 def population_mesh(size: int, *, divides: bool = False):
     """A 1-D ``"population"`` mesh over at most ``size`` of ``jax.devices()`` (every device JAX sees: the CPU devices of
     :func:`use_cpu_cores`, the GPUs, or every host's devices after ``jax.distributed.initialize()``); more devices
-    than population members (candidates, runs, environments) would only run padding. With ``divides`` the device
-    count is the largest that divides ``size`` (a population that is not padded)."""
+    than population members (candidates, runs, environments) would only run padding.
+
+    Args:
+        size: the population's members.
+        divides: use the largest device count that divides ``size`` (a population that is not padded).
+    """
     import jax
     import numpy as np
     from jax.sharding import Mesh
@@ -67,7 +77,12 @@ def population_mesh(size: int, *, divides: bool = False):
 
 
 def shard_count(size: int, *, divides: bool = False) -> int:
-    """How many devices a population of ``size`` members is sharded over (:func:`population_mesh`)."""
+    """How many devices a population is sharded over (:func:`population_mesh`).
+
+    Args:
+        size: the population's members.
+        divides: the largest count that divides ``size``.
+    """
     import jax
 
     n = min(len(jax.devices()), max(1, size))
@@ -77,8 +92,13 @@ def shard_count(size: int, *, divides: bool = False) -> int:
 
 
 def jit_replicated(update, replicated):
-    """``jax.jit(update)`` for a state that lives replicated on every device (``replicated``: a ``NamedSharding``
-    with an empty ``PartitionSpec``): the state is placed there before each call, which keeps one jit cache entry."""
+    """``jax.jit(update)`` for a state that lives replicated on every device: the state is placed there before each
+    call, which keeps one jit cache entry.
+
+    Args:
+        update: ``update(state) -> (state, metrics)``.
+        replicated: a ``NamedSharding`` with an empty ``PartitionSpec``.
+    """
     import jax
 
     jitted = jax.jit(update, out_shardings=replicated)

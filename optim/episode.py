@@ -38,10 +38,18 @@ def episode(task: AbstractTask, policy, normalizer: Normalizer | None, key: PRNG
             truncation: int | None = None) -> Episode:
     """Roll ``policy`` out for ``task.horizon`` steps from ``task.reset(key)``.
 
-    ``policy(obs, hidden, reset) -> (action, hidden)`` (a :class:`policies.GRUPolicy`, :class:`policies.MLPPolicy` or
-    :class:`policies.DeterministicPolicy`); it sees ``normalizer(obs)`` when a normaliser is given. The hidden state
-    starts at zeros and is reset at step 0. With ``truncation = k`` the gradient through the state is cut every
-    ``k`` steps (truncated BPTT). Unbatched: ``jax.vmap`` it over keys.
+    The policy sees ``normalizer(obs)`` when a normaliser is given. Its hidden state starts at zeros and is reset at
+    step 0. Unbatched: ``jax.vmap`` it over keys.
+
+    Args:
+        task: the task.
+        policy: a :class:`policies.AbstractPolicy`, ``policy(obs, hidden, reset) -> (action, hidden)``.
+        normalizer: the observation normaliser, or None.
+        key: PRNG key of the start.
+        truncation: cut the gradient through the state every ``truncation`` steps (truncated BPTT), or None.
+
+    Returns:
+        The :class:`Episode`.
     """
     s0 = task.reset(key)
     h0 = policy.initial_state()
@@ -67,7 +75,17 @@ def episode(task: AbstractTask, policy, normalizer: Normalizer | None, key: PRNG
 
 def evaluate(task: AbstractTask, policy, normalizer: Normalizer | None, key: PRNGKeyArray,
              episodes: int) -> tuple[Float[Array, " episodes"], Bool[Array, " episodes"]]:
-    """Deterministic returns ``(episodes,)`` and balanced flags ``(episodes,)`` (:func:`lagrange.tasks.balanced`)
-    from ``episodes`` random starts drawn from ``key``."""
+    """The policy's deterministic returns and balance from random starts.
+
+    Args:
+        task: the task.
+        policy: a :class:`policies.AbstractPolicy`.
+        normalizer: the observation normaliser, or None.
+        key: PRNG key of the starts.
+        episodes: how many episodes.
+
+    Returns:
+        ``(returns, balanced)``, each of shape ``(episodes,)`` (:func:`lagrange.tasks.balanced`).
+    """
     eps = jax.vmap(lambda k: episode(task, policy, normalizer, k))(jax.random.split(key, episodes))
     return eps.ret, balanced(task, eps.q)

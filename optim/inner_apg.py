@@ -89,6 +89,10 @@ class InnerAPGConfig(AlgorithmConfig):
             raise ValueError(f"{c}.fitness_window must be <= apg_steps ({self.apg_steps}), got {self.fitness_window}")
 
     def learning_rate(self, iteration: Int[ArrayLike, ""]) -> Float[Array, ""]:
-        """The learning rate of the 0-based ``iteration``: :func:`log_linear_lr` from ``lr_start`` at iteration 0 to
-        ``lr_end`` at ``iterations`` (constant within one)."""
+        """The learning rate: :func:`log_linear_lr` from ``lr_start`` at iteration 0 to ``lr_end`` at ``iterations``
+        (constant within one).
+
+        Args:
+            iteration: the 0-based iteration, an int or a traced integer.
+        """
         return log_linear_lr(iteration, self.iterations, self.lr_start, self.lr_end)

@@ -30,8 +30,12 @@ __all__ = ["PAPGConfig", "PAPGState", "make_trainer"]
 
 @dataclasses.dataclass(frozen=True)
 class PAPGConfig(InnerAPGConfig):
-    """Fields as in :class:`optim.CEAPGConfig` (the shared ones in :class:`optim.inner_apg.InnerAPGConfig`);
-    ``num_runs`` independent runs [24], a multiple of the device count."""
+    """PAPG settings: the fields of the APG inner loop are :class:`optim.inner_apg.InnerAPGConfig`'s (the paper's
+    values the defaults), ``iterations`` of ``apg_steps`` Adam steps for each run.
+
+    Attributes:
+        num_runs (int): independent runs, >= 1 and a multiple of the device count (paper: 24).
+    """
 
     num_runs: int = 24
 
@@ -40,15 +44,36 @@ class PAPGConfig(InnerAPGConfig):
         check_int(type(self).__name__, "num_runs", self.num_runs, 1)
 
     def env_steps_per_iteration(self, horizon: int) -> int:
+        """Simulated control steps of one iteration on a task of ``horizon`` steps.
+
+        Args:
+            horizon: the task's episode length in control steps.
+        """
         return self.num_runs * self.apg_steps * self.episodes * horizon
 
     def make_trainer(self, task: AbstractTask, policy, *, objective: Callable | None = None) -> Trainer:
+        """:func:`optim.papg.make_trainer` of this config.
+
+        Args:
+            task: the task to train on, and the one the trainer evaluates.
+            policy: the policy module, its architecture (the algorithm draws the initial weights from the run's key).
+            objective: the loss of a batch of episodes each APG step minimises (default :func:`optim.mean_return_loss`,
+                minus the mean return).
+        """
         return make_trainer(self, task, policy, objective=objective)
 
 
 class PAPGState(NamedTuple):
-    """PAPG's training state: every run's parameters ``(num_runs, P)``, normalisers (leaves with a leading
-    ``num_runs`` axis), last fitness ``(num_runs,)``, the run's key and the iteration count."""
+    """PAPG's training state (``P`` flat policy parameters).
+
+    Attributes:
+        params (Float[Array, "num_runs P"]): every run's parameters.
+        normalizers (Normalizer | None): every run's normaliser (leaves with a leading ``num_runs`` axis).
+        fitness (Float[Array, "num_runs"]): every run's last fitness (-inf before the first iteration, and for a
+            run that went non-finite).
+        key (PRNGKeyArray): the run's key; iteration ``i`` draws from ``fold_in(key, i)``.
+        iteration (Int[Array, ""]): iterations done, int32.
+    """
 
     params: Float[Array, "runs P"]
     normalizers: Normalizer | None
@@ -58,7 +83,23 @@ class PAPGState(NamedTuple):
 
 
 def make_trainer(config: PAPGConfig, task: AbstractTask, policy, *, objective: Callable | None = None) -> Trainer:
-    """PAPG on ``task``; each run starts from ``policy.reinit(k)`` for its own key ``k``."""
+    """PAPG on ``task``; each run starts from ``policy.reinit(k)`` for its own key ``k``.
+
+    Args:
+        config: the settings.
+        task: the task to train on, and the one the trainer evaluates.
+        policy: the policy module, its architecture (the algorithm draws the initial weights from the run's key).
+        objective: the loss of a batch of episodes each APG step minimises (default :func:`optim.mean_return_loss`,
+            minus the mean return).
+
+    Returns:
+        The :class:`optim.Trainer`; its metrics: ``best_return``, ``mean_return`` (of the finite runs), ``nonfinite``
+        (how many runs went non-finite) and ``nonfinite_members`` (which: a ``(num_runs,)`` bool mask),
+        ``learning_rate``, ``env_steps``.
+
+    Raises:
+        ValueError: if ``num_runs`` is not a multiple of the device count.
+    """
     objective = mean_return_loss if objective is None else objective
     _, unravel = flatten_policy(policy)
     N = config.num_runs

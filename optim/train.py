@@ -101,6 +101,29 @@ def train(config: AlgorithmConfig, task, policy, key: PRNGKeyArray, *, checkpoin
     :class:`optim.checkpoint.CheckpointError` says what differs. With ``eval_every = k`` the deterministic policy
     (``trainer.policy(state)``) is evaluated on ``eval_episodes`` starts drawn from ``eval_key`` (the same each time;
     default ``PRNGKey(10_000)``) before training, every ``k`` iterations and after the last.
+
+    Args:
+        config: the algorithm's settings.
+        task: the task to train on.
+        policy: the policy module, its architecture.
+        key: the run's PRNG key.
+        checkpoint: the checkpoint file, or None for none; checked to be writable before any work.
+        resume: continue the checkpoint at ``checkpoint`` if there is one.
+        seed: recorded in the checkpoint, and compared on resume.
+        progress: show a progress bar.
+        eval_every: evaluate every this many iterations, >= 1; None: never.
+        eval_episodes: episodes of each evaluation.
+        eval_key: the PRNG key of the evaluations' starts.
+        objective: the loss of an episode batch (:meth:`optim.AlgorithmConfig.make_trainer`).
+
+    Returns:
+        A :class:`TrainResult`.
+
+    Raises:
+        ValueError: a bad ``eval_every``, or a ``checkpoint`` that cannot be written.
+        optim.checkpoint.CheckpointError: a checkpoint that cannot be resumed, naming what differs or is damaged.
+        FloatingPointError: an iteration that left a NaN in the training state (not checkpointed; the file keeps
+            the iteration before).
     """
     from tqdm.auto import tqdm
 
@@ -225,9 +248,21 @@ def _resume(path, like, config: AlgorithmConfig, identity: dict, seed):
 
 
 def load(path: str | os.PathLike, task, policy, *, objective: Callable | None = None):
-    """``(trainer, state, header)`` from a checkpoint written by :func:`train`: the config comes from the file's header;
-    ``task`` and ``policy`` must be the ones it was trained with (checked against the header). Raises
-    :class:`optim.checkpoint.CheckpointError` for a corrupt file, another format, or another task or policy."""
+    """Read a checkpoint written by :func:`train`; the config comes from the file's header.
+
+    Args:
+        path: the checkpoint file.
+        task: the task it was trained with (checked against the header).
+        policy: the policy module it was trained with (checked).
+        objective: the objective it was trained with, if not the default.
+
+    Returns:
+        ``(trainer, state, header)``.
+
+    Raises:
+        optim.checkpoint.CheckpointError: a damaged file (its digest, its iteration counter, a NaN), another format,
+            or another task or policy, naming what differs.
+    """
     head = ckpt.read_header(path)
     try:
         config = config_from_dict(head.get("config") or {})

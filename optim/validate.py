@@ -11,14 +11,37 @@ __all__ = ["check_int", "check_real", "check_positive", "check_probability", "ch
 
 
 def check_int(cls: str, name: str, value, minimum: int) -> None:
-    """``value`` is an integer (not a bool) ``>= minimum``."""
+    """Check that ``value`` is an integer (not a bool) ``>= minimum``.
+
+    Args:
+        cls: the config's class name, for the error.
+        name: the field's name.
+        value: its value.
+        minimum: the smallest allowed.
+
+    Raises:
+        ValueError: ``<cls>.<name> must be an integer >= <minimum>, got <value>``.
+    """
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
         raise ValueError(f"{cls}.{name} must be an integer >= {minimum}, got {value!r}")
 
 
 def check_real(cls: str, name: str, value, lo: float | None = None, hi: float | None = None, *,
                lo_open: bool = False, hi_open: bool = False) -> None:
-    """``value`` is a finite real number in the interval from ``lo`` to ``hi`` (open at an end where asked)."""
+    """Check that ``value`` is a finite real number (not a bool) in the interval from ``lo`` to ``hi``.
+
+    Args:
+        cls: the config's class name, for the error.
+        name: the field's name.
+        value: its value.
+        lo: the lower end, or None for none.
+        hi: the upper end, or None for none.
+        lo_open: exclude ``lo`` itself.
+        hi_open: exclude ``hi`` itself.
+
+    Raises:
+        ValueError: naming ``<cls>.<name>`` and the interval.
+    """
     try:
         x = float(value)
     except (TypeError, ValueError):
@@ -35,15 +58,35 @@ def check_real(cls: str, name: str, value, lo: float | None = None, hi: float | 
 
 
 def check_positive(cls: str, name: str, value, *, allow_zero: bool = False) -> None:
-    """``value`` is a finite number ``> 0`` (``>= 0`` with ``allow_zero``)."""
+    """Check that ``value`` is a finite number ``> 0`` (``>= 0`` with ``allow_zero``).
+
+    Args:
+        cls: the config's class name, for the error.
+        name: the field's name.
+        value: its value.
+        allow_zero: accept 0.
+    """
     check_real(cls, name, value, 0.0, lo_open=not allow_zero)
 
 
 def check_probability(cls: str, name: str, value) -> None:
-    """``value`` is a probability in ``[0, 1]``."""
+    """Check that ``value`` is a probability in ``[0, 1]``.
+
+    Args:
+        cls: the config's class name, for the error.
+        name: the field's name.
+        value: its value.
+    """
     check_real(cls, name, value, 0.0, 1.0)
 
 
 def check_bool(cls: str, name: str, value) -> None:
+    """Check that ``value`` is True or False (not 0 or 1).
+
+    Args:
+        cls: the config's class name, for the error.
+        name: the field's name.
+        value: its value.
+    """
     if not isinstance(value, bool):
         raise ValueError(f"{cls}.{name} must be True or False, got {value!r}")

@@ -87,7 +87,11 @@ class Actor(AbstractPolicy):
         self.hidden_size = 0
 
     def reinit(self, key: PRNGKeyArray) -> "Actor":
-        """The same architecture (sizes, ``init_log_std`` and dtype) with fresh initial weights drawn from ``key``."""
+        """The same architecture (sizes, ``init_log_std`` and dtype) with fresh initial weights.
+
+        Args:
+            key: PRNG key of the new weights.
+        """
         units = tuple(layer.out_features for layer in self.mu.hidden)
         return Actor(self.mu.hidden[0].in_features if units else self.mu.out.in_features, self.log_std.shape[0],
                      units, self.init_log_std, key=key, dtype=self.mu.out.weight.dtype)
@@ -107,8 +111,14 @@ class Actor(AbstractPolicy):
         return jnp.tanh(mu + jnp.exp(self.log_std) * eps)
 
     def deterministic(self, obs: Float[ArrayLike, " obs_size"]) -> Float[Array, " action_size"]:
-        """The evaluation action ``tanh(mu(obs))``, shape ``(action_size,)``, dimensionless, for the
-        normalised observation ``obs`` of shape ``(obs_size,)``."""
+        """The evaluation action ``tanh(mu(obs))``.
+
+        Args:
+            obs: the normalised observation, shape ``(obs_size,)``.
+
+        Returns:
+            The action in ``(-1, 1)``, shape ``(action_size,)``, dimensionless.
+        """
         return jnp.tanh(self.mu(obs))
 
     def __call__(
@@ -117,9 +127,16 @@ class Actor(AbstractPolicy):
         hidden: Float[Array, " 0"],
         reset: Bool[ArrayLike, ""] = False,
     ) -> tuple[Float[Array, " action_size"], Float[Array, " 0"]]:
-        """``(deterministic(obs), hidden)``: the evaluation action in ``(-1, 1)``, shape ``(action_size,)``
-        (dimensionless), for the normalised observation of shape ``(obs_size,)``; ``hidden`` (shape ``(0,)``) is
-        returned unchanged and ``reset`` is unused."""
+        """One step of the actor as a rollout policy: the evaluation action.
+
+        Args:
+            obs: the normalised observation, shape ``(obs_size,)``.
+            hidden: the empty hidden state, shape ``(0,)``, returned unchanged.
+            reset: unused (the actor has no state); accepted for the common interface.
+
+        Returns:
+            ``(deterministic(obs), hidden)``.
+        """
         return self.deterministic(obs), hidden
 
 
@@ -141,6 +158,12 @@ class Critic(eqx.Module):
         self.net = _MLP(obs_size, 1, tuple(units), orthogonal_gain=float(np.sqrt(2.0)), key=key, dtype=dtype)
 
     def __call__(self, obs: Float[ArrayLike, " obs_size"]) -> Float[Array, ""]:
-        """The value of the normalised observation ``obs`` (shape ``(obs_size,)``): a scalar, in the
-        task's reward units (a discounted sum of rewards)."""
+        """The value of an observation.
+
+        Args:
+            obs: the normalised observation, shape ``(obs_size,)``.
+
+        Returns:
+            A scalar, in the task's reward units (a discounted sum of rewards).
+        """
         return self.net(obs)[0]

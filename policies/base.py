@@ -41,7 +41,11 @@ class AbstractPolicy(eqx.Module):
 
     @abc.abstractmethod
     def reinit(self, key: PRNGKeyArray) -> "AbstractPolicy":
-        """The same architecture (sizes and dtype) with fresh initial weights drawn from ``key``."""
+        """The same architecture (sizes and dtype) with fresh initial weights.
+
+        Args:
+            key: PRNG key of the new weights.
+        """
 
     @property
     def dtype(self) -> jnp.dtype:

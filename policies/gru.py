@@ -55,7 +55,11 @@ class GRUPolicy(AbstractPolicy):
         self.hidden_size = obs_size
 
     def reinit(self, key: PRNGKeyArray) -> "GRUPolicy":
-        """The same architecture (sizes and dtype) with fresh initial weights drawn from ``key``."""
+        """The same architecture (sizes and dtype) with fresh initial weights.
+
+        Args:
+            key: PRNG key of the new weights.
+        """
         return GRUPolicy(self.hidden_size, self.head.out_features, self.embed.out_features, key=key,
                          dtype=self.fc1.weight.dtype)
 

@@ -47,7 +47,11 @@ class MLPPolicy(AbstractPolicy):
         self.hidden_size = 0
 
     def reinit(self, key: PRNGKeyArray) -> "MLPPolicy":
-        """The same architecture (sizes, depth and dtype) with fresh initial weights drawn from ``key``."""
+        """The same architecture (sizes, depth and dtype) with fresh initial weights.
+
+        Args:
+            key: PRNG key of the new weights.
+        """
         m = self.mlp
         return MLPPolicy(m.in_size, m.out_size, m.width_size, m.depth, key=key, dtype=m.layers[-1].weight.dtype)
 

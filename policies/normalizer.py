@@ -99,14 +99,26 @@ class BraxNormalizer(eqx.Module):
 
     @classmethod
     def create(cls, size: int, *, dtype: DTypeLike | None = None) -> BraxNormalizer:
-        """Brax's prior: ``steps = 0``, ``mean = 0``, ``m2 = 1``."""
+        """An empty normaliser with Brax's prior: ``steps = 0``, ``mean = 0``, ``m2 = 1``.
+
+        Args:
+            size: length of the observation vector, >= 1.
+            dtype: floating dtype of the statistics; ``None`` for JAX's default.
+        """
         if size < 1:
             raise ValueError(f"BraxNormalizer size must be >= 1, got {size}")
         dtype = dtype or jnp.zeros(()).dtype
         return cls(jnp.zeros((), dtype), jnp.zeros(size, dtype), jnp.ones(size, dtype))
 
     def update(self, obs: Float[ArrayLike, "*batch size"]) -> BraxNormalizer:
-        """Merge a batch of observations (Brax's Welford update; no gradient flows)."""
+        """Merge a batch of observations (Brax's Welford update; no gradient flows).
+
+        Args:
+            obs: observations, shape ``(*batch, size)``; every leading index is one sample.
+
+        Returns:
+            The updated normaliser (``self`` is unchanged).
+        """
         obs = jax.lax.stop_gradient(jnp.asarray(obs)).reshape(-1, self.mean.shape[0]).astype(self.mean.dtype)
         total = self.steps + obs.shape[0]
         to_old = obs - self.mean
@@ -115,6 +127,13 @@ class BraxNormalizer(eqx.Module):
         return BraxNormalizer(total, mean, m2)
 
     def __call__(self, obs: Float[ArrayLike, "*batch size"]) -> Float[Array, "*batch size"]:
-        """``clip((obs - mean) / sqrt(clip(m2 / (steps + 1), 1e-6, 1e6)), -5, 5)``, dimensionless."""
+        """Normalise observations: ``clip((obs - mean) / sqrt(clip(m2 / (steps + 1), 1e-6, 1e6)), -5, 5)``.
+
+        Args:
+            obs: observations, shape ``(*batch, size)``, in the task's units.
+
+        Returns:
+            Shape ``(*batch, size)``, dimensionless.
+        """
         var = jnp.clip(self.m2 / (self.steps + 1.0), 1e-6, 1e6)
         return jnp.clip((obs - self.mean) / jnp.sqrt(var), -5.0, 5.0)

@@ -33,7 +33,13 @@ __all__ = ["BraxEnv", "PipelineState", "brax_training_compat"]
 
 
 class PipelineState(NamedTuple):
-    """The Brax ``pipeline_state``: coordinates ``q`` (n,), velocities ``qd`` (n,) and the step count ``t`` ()."""
+    """The Brax ``pipeline_state`` of a task.
+
+    Attributes:
+        q (Float[Array, "n"]): coordinates [rad; m for a cart].
+        qd (Float[Array, "n"]): velocities [rad/s; m/s for a cart].
+        t (Int[Array, ""]): control steps into the episode.
+    """
 
     q: jax.Array
     qd: jax.Array
@@ -56,6 +62,10 @@ class BraxEnv(Env):
     Usage: ``env = BraxEnv(Acrobot.rods())``, then ``env.reset(key)`` and ``env.step(state, action)``
     (jit and vmap them as any Brax environment), or pass ``environment=env`` to a Brax trainer inside
     :func:`brax_training_compat`.
+
+    Args:
+        task: a task of :mod:`lagrange.tasks`.
+        terminate_at_horizon: ``done`` is 1 after ``task.horizon`` steps (True), or always 0 (False).
     """
 
     def __init__(self, task: AbstractTask, *, terminate_at_horizon: bool = True):
@@ -66,8 +76,14 @@ class BraxEnv(Env):
         self._dtype = jnp.result_type(task.chain.mass)
 
     def reset(self, rng: jax.Array) -> State:
-        """The task's random start drawn with one PRNG key ``rng`` (Brax's ``VmapWrapper`` vmaps over a batch of
-        keys). Raises ``ValueError`` for a batch of keys."""
+        """The task's random start (Brax's ``VmapWrapper`` vmaps over a batch of keys).
+
+        Args:
+            rng: one PRNG key (a raw ``(2,)`` key or a typed one).
+
+        Raises:
+            ValueError: for a batch of keys.
+        """
         typed = jax.dtypes.issubdtype(getattr(rng, "dtype", None) or jnp.result_type(rng), jax.dtypes.prng_key)
         one = () if typed else jnp.shape(jax.random.PRNGKey(0))
         if jnp.shape(rng) != one:
@@ -79,9 +95,16 @@ class BraxEnv(Env):
         return State(ps, self.task.observe(s).astype(self._dtype), zero, zero, {}, {})
 
     def step(self, state: State, action: jax.Array) -> State:
-        """One control interval of the task under ``action``, shape ``(action_size,)`` in ``[-1, 1]`` (Brax's
-        ``VmapWrapper`` vmaps the step over a batch). Raises ``ValueError`` for another shape, ``TypeError`` for a
-        boolean or complex action."""
+        """One control interval of the task (Brax's ``VmapWrapper`` vmaps the step over a batch).
+
+        Args:
+            state: the environment's state.
+            action: one action, shape ``(action_size,)``, in ``[-1, 1]`` (clipped).
+
+        Raises:
+            ValueError: for an action of another shape.
+            TypeError: for a boolean or complex action.
+        """
         ps = state.pipeline_state
         s = TaskState(ps.q, ps.qd)
         if jnp.shape(action) != (self.action_size,):

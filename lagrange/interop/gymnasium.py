@@ -45,6 +45,11 @@ class GymEnv(gym.Env):
       :func:`lagrange.positions` with Matplotlib's Agg backend.
 
     The simulation runs in the dtype of the chain's parameters; observations are cast to float32.
+
+    Args:
+        task: a task of :mod:`lagrange.tasks`.
+        render_mode: None, or ``"rgb_array"``.
+        frame_size: ``(width, height)`` of a rendered frame in pixels, each >= 16.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
@@ -80,6 +85,15 @@ class GymEnv(gym.Env):
         self._broken = False
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start an episode from the task's random start.
+
+        Args:
+            seed: seeds the environment's ``np_random``, from which the JAX key of the start is drawn.
+            options: unused (Gymnasium's interface).
+
+        Returns:
+            ``(obs, {})``, the observation as float32.
+        """
         super().reset(seed=seed)
         key = jax.random.PRNGKey(int(self.np_random.integers(0, 2**31 - 1)))
         self._state, obs = self._reset_fn(key)
@@ -87,7 +101,13 @@ class GymEnv(gym.Env):
         return np.asarray(obs, np.float32), {}
 
     def step(self, action):
-        """One control interval under ``action``; see the class docstring.
+        """One control interval; see the class docstring.
+
+        Args:
+            action: a finite real array of shape ``(action_size,)``, in ``[-1, 1]`` (clipped).
+
+        Returns:
+            ``(obs, reward, terminated, truncated, info)``.
 
         Raises:
             RuntimeError: before :meth:`reset`, and after an episode ended by a non-finite state.

@@ -18,10 +18,17 @@ __all__ = ["balanced", "leaves_upright", "upright_error"]
 
 def balanced(task: AbstractTask, q: Float[ArrayLike, "*batch T n"], *, fraction: float = 0.2,
              tolerance: float = 0.2) -> Bool[Array, " *batch"]:
-    """Whether every pole stays within ``tolerance`` rad of upright during the final ``fraction`` of an episode.
+    """Whether every pole stays within ``tolerance`` rad of upright during the final ``fraction`` of an episode
+    ("upright" measured on each link's absolute orientation).
 
-    ``q`` is a trajectory of coordinates (T, n) (leading batch dims allowed); "upright" is measured
-    on each link's absolute orientation. Returns a boolean array of the batch shape.
+    Args:
+        task: the task (where its poles start in ``q``).
+        q: a trajectory of coordinates, shape ``(*batch, T, n)``.
+        fraction: the share of the episode's end that must hold, in (0, 1].
+        tolerance: the largest angle from upright allowed [rad].
+
+    Returns:
+        A boolean array of the batch shape.
     """
     q = jnp.asarray(q)
     T = q.shape[-2]
@@ -32,10 +39,20 @@ def balanced(task: AbstractTask, q: Float[ArrayLike, "*batch T n"], *, fraction:
 def leaves_upright(task: AbstractTask, q: Float[ArrayLike, "*batch T n"], *, tolerance: float,
                    from_step: int = 0) -> Int[np.ndarray, " *batch"]:
     """How long a hold lasts: per episode, the first step ``t >= from_step`` at which some pole is more than
-    ``tolerance`` rad from upright (:func:`upright_error`, as :func:`balanced` measures it), -1 where none is.
+    ``tolerance`` rad from upright (:func:`upright_error`, as :func:`balanced` measures it), -1 where none is; a
+    non-finite step counts as having left.
 
-    ``q`` is a trajectory of coordinates (T, n) (leading batch dims allowed), step ``t`` at ``q[..., t, :]``; a
-    non-finite step counts as having left. Returns a NumPy integer array of the batch shape (0-d for one episode).
+    Args:
+        task: the task.
+        q: a trajectory of coordinates, shape ``(*batch, T, n)``, step ``t`` at ``q[..., t, :]``.
+        tolerance: the largest angle from upright allowed [rad], > 0.
+        from_step: the first step looked at, in ``[0, T)``.
+
+    Returns:
+        A NumPy integer array of the batch shape (0-d for one episode).
+
+    Raises:
+        ValueError: for a ``q``, ``tolerance`` or ``from_step`` out of range.
     """
     q = jnp.asarray(q)
     if q.ndim < 2 or q.shape[-1] != task.chain.n:
@@ -49,7 +66,14 @@ def leaves_upright(task: AbstractTask, q: Float[ArrayLike, "*batch T n"], *, tol
 
 
 def upright_error(task: AbstractTask, q: Float[ArrayLike, "*batch n"]) -> Float[Array, " *batch"]:
-    """The largest angle (rad) by which any pole is away from upright, per step: ``q`` (..., n) -> (...).
+    """The largest angle [rad] by which any pole is away from upright, measured on each link's absolute orientation
+    (the sum of the joint angles from the base), the cart excluded.
 
-    Measured on each link's absolute orientation (the sum of the joint angles from the base), the cart excluded."""
+    Args:
+        task: the task.
+        q: coordinates, shape ``(*batch, n)``.
+
+    Returns:
+        Shape ``(*batch,)``.
+    """
     return jnp.max(jnp.abs(pole_orientations(task, jnp.asarray(q))), axis=-1)

@@ -32,26 +32,39 @@ TaskSolver = diffrax.AbstractSolver | SemiImplicitEuler | SymplecticEuler
 
 
 def wrap(angle: Float[ArrayLike, " *shape"]) -> Float[Array, " *shape"]:
-    """Wrap angles [rad] to ``(-pi, pi]``, elementwise."""
+    """Wrap angles to ``(-pi, pi]``, elementwise.
+
+    Args:
+        angle: angles [rad], any shape.
+    """
     return jnp.pi - jnp.mod(jnp.pi - angle, 2 * jnp.pi)
 
 
 class TaskState(NamedTuple):
-    """Generalized coordinates ``q`` (n,) and velocities ``qd`` (n,) of the chain (rad and rad/s; m and m/s for a
-    cart)."""
+    """A task's state: the chain's generalized coordinates and velocities.
+
+    Attributes:
+        q (Float[Array, "n"]): coordinates [rad; m for a cart].
+        qd (Float[Array, "n"]): velocities [rad/s; m/s for a cart].
+    """
 
     q: Float[Array, " n"]
     qd: Float[Array, " n"]
 
 
 class AbstractTask(eqx.Module):
-    """A control task on a planar chain; every method is pure.
+    """A control task on a planar chain; every method is pure. Subclasses provide the fields and class variables
+    below, and ``reset``, ``observe``, ``reward`` and ``observation_size``; the dynamics (``step``) and the angle
+    readings are the same for every task.
 
-    Subclasses provide the fields ``chain``, ``dt`` (the control interval [s]), ``horizon`` (control steps per
-    episode), ``substeps`` and ``solver`` (``substeps`` steps of ``solver`` per interval), the class variables
-    ``first_pole`` (the index in ``q`` of the first pole's joint: 1 after a cart, else 0) and ``name`` (a display
-    name for titles and results, never switched on), and ``reset``, ``observe``, ``reward`` and
-    ``observation_size``. The dynamics (``step``) and the angle readings are the same for every task.
+    Attributes:
+        chain (Chain): the chain.
+        dt (float): the control interval [s].
+        horizon (int): control steps per episode.
+        substeps (int): steps of ``solver`` per control interval.
+        solver (TaskSolver): the integrator (:mod:`lagrange.solvers`, or an explicit diffrax Runge-Kutta solver).
+        first_pole (ClassVar[int]): the index in ``q`` of the first pole's joint: 1 after a cart, else 0.
+        name (ClassVar[str]): a display name for titles and results, never switched on.
     """
 
     chain: AbstractVar[Chain]
@@ -64,15 +77,29 @@ class AbstractTask(eqx.Module):
 
     @abc.abstractmethod
     def reset(self, key: PRNGKeyArray) -> TaskState:
-        """A random start state drawn with ``key``."""
+        """A random start state.
+
+        Args:
+            key: the PRNG key it is drawn with.
+        """
 
     @abc.abstractmethod
     def observe(self, state: TaskState) -> Float[Array, " observation_size"]:
-        """The observation vector of ``state``."""
+        """The observation vector of a state, shape ``(observation_size,)``.
+
+        Args:
+            state: the state.
+        """
 
     @abc.abstractmethod
     def reward(self, state: TaskState, action: Float[ArrayLike, " m"], next_state: TaskState) -> Float[Array, ""]:
-        """Reward of the transition ``state --action--> next_state``."""
+        """The reward of a transition ``state --action--> next_state``, a scalar.
+
+        Args:
+            state: the state before.
+            action: the action, shape ``(m,)``.
+            next_state: the state after.
+        """
 
     @property
     @abc.abstractmethod
@@ -96,21 +123,38 @@ class AbstractTask(eqx.Module):
         return self.chain.n - self.first_pole
 
     def step(self, state: TaskState, action: Float[ArrayLike, " m"]) -> TaskState:
-        """One control interval ``dt`` under ``clip(action, -1, 1)`` times the chain's gear (:func:`control_step`)."""
+        """One control interval ``dt`` under ``clip(action, -1, 1)`` times the chain's gear (:func:`control_step`).
+
+        Args:
+            state: one state.
+            action: one action, shape ``(m,)``.
+        """
         return control_step(self, state, action)
 
     def angles(self, state: TaskState) -> Float[Array, " n_links"]:
-        """Pole angles (n_links,) [rad], wrapped, 0 = first pole upright / later links straight."""
+        """Pole angles [rad], wrapped, 0 = first pole upright / later links straight, shape ``(n_links,)``.
+
+        Args:
+            state: the state.
+        """
         rel = state.q[self.first_pole:]
         offset = jnp.zeros_like(rel).at[0].set(jnp.pi)
         return wrap(rel - offset)
 
     def link_angles(self, state: TaskState) -> Float[Array, " n_links"]:
-        """Absolute pole orientations (n_links,) [rad], wrapped, 0 = pointing straight up."""
+        """Absolute pole orientations [rad], wrapped, 0 = pointing straight up, shape ``(n_links,)``.
+
+        Args:
+            state: the state.
+        """
         return pole_orientations(self, state.q)
 
     def angular_velocities(self, state: TaskState) -> Float[Array, " n_links"]:
-        """Joint velocities of the poles (n_links,) [rad/s], relative as the angles are."""
+        """Joint velocities of the poles [rad/s], relative as the angles are, shape ``(n_links,)``.
+
+        Args:
+            state: the state.
+        """
         return state.qd[self.first_pole:]
 
 
@@ -162,6 +206,9 @@ def pole_orientations(task: AbstractTask, q: Float[ArrayLike, "*batch n"]) -> Fl
 def check_schedule(task: AbstractTask) -> None:
     """Check a task's ``dt``, ``horizon`` and ``substeps`` (for a task's ``__check_init__``).
 
+    Args:
+        task: the task.
+
     Raises:
         ValueError: naming the field that is out of range (``horizon``, ``substeps``: integers >= 1; ``dt`` > 0).
     """
@@ -176,6 +223,10 @@ def check_schedule(task: AbstractTask) -> None:
 
 def check_joints(task: AbstractTask, joints: tuple[str, ...]) -> None:
     """Check that a task's chain has the joint kinds ``joints`` and a motor (for a task's ``__check_init__``).
+
+    Args:
+        task: the task.
+        joints: the joint kinds its chain must have, in order (``("prismatic", "revolute")``).
 
     Raises:
         ValueError: naming ``chain`` and the joints it must have, or that it has no actuated joint.

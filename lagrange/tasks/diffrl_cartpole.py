@@ -53,9 +53,15 @@ class DiffRLCartpole(AbstractTask):
     reset                  hanging down; ``x, q`` + U(-pi/2, pi/2) each, ``dx, dq`` + U(-0.25, 0.25) each
     =====================  ======================================================================================
 
-    Fields (all but ``chain`` keyword-only): ``chain`` (a cart-pole chain, :func:`lagrange.systems.cartpole`),
-    ``dt`` [s], ``horizon``, ``substeps``, ``solver``, and the reset noise half-widths ``noise_q`` (on ``x`` [m] and
-    ``q`` [rad]) and ``noise_qd`` (on ``dx`` [m/s] and ``dq`` [rad/s]); the defaults are the authors'.
+    Attributes:
+        chain (Chain): a cart-pole chain (:func:`lagrange.systems.cartpole`); the other fields are keyword-only, their
+            defaults the authors'.
+        dt (float): the control interval [s], > 0 (1/60).
+        horizon (int): control steps per episode, >= 1 (240).
+        substeps (int): steps of ``solver`` per interval, >= 1 (1).
+        solver (TaskSolver): the integrator (``RK4()``; the authors' is ``SemiImplicitEuler()`` with 4 substeps).
+        noise_q (float): the reset noise's half-width on ``x`` [m] and ``q`` [rad], >= 0 (pi/2).
+        noise_qd (float): its half-width on ``dx`` [m/s] and ``dq`` [rad/s], >= 0 (0.25).
     """
 
     chain: Chain
@@ -82,8 +88,24 @@ class DiffRLCartpole(AbstractTask):
                pole_inertia: float = POLE_INERTIA, gear: float = 1000.0, dt: float = 1.0 / 60.0, horizon: int = 240,
                solver=RK4(), substeps: int = 1, noise_q: float = math.pi / 2,
                noise_qd: float = 0.25) -> DiffRLCartpole:
-        """The SHAC authors' cartpole swing-up; every default is theirs (masses [kg], length [m], inertia [kg m^2],
-        gear [N], ``dt`` [s]; see the module docstring). Raises ``ValueError`` naming a field out of range."""
+        """The SHAC authors' cartpole swing-up; every default is theirs (see the module docstring).
+
+        Args:
+            cart_mass: the cart's mass [kg].
+            pole_mass: the pole's mass [kg].
+            pole_length: the pole's length [m].
+            pole_inertia: the pole's inertia about its centre of mass [kg m^2].
+            gear: the force of a unit action [N].
+            dt: the control interval [s].
+            horizon: control steps per episode.
+            solver: the integrator.
+            substeps: its steps per interval.
+            noise_q: the reset noise's half-width on ``x`` [m] and ``q`` [rad].
+            noise_qd: on ``dx`` [m/s] and ``dq`` [rad/s].
+
+        Raises:
+            ValueError: naming a field out of range.
+        """
         chain = systems.cartpole(cart_mass=cart_mass, pole_mass=pole_mass, pole_length=pole_length,
                                  pole_inertia=pole_inertia, gear=gear)
         return cls(chain, dt=float(dt), horizon=horizon, substeps=substeps, solver=solver, noise_q=float(noise_q),
@@ -94,7 +116,11 @@ class DiffRLCartpole(AbstractTask):
         return 5
 
     def reset(self, key: PRNGKeyArray) -> TaskState:
-        """Hanging down, plus U(-noise_q, noise_q) on (x, q) and U(-noise_qd, noise_qd) on (dx, dq)."""
+        """Hanging down, plus U(-noise_q, noise_q) on (x, q) and U(-noise_qd, noise_qd) on (dx, dq).
+
+        Args:
+            key: the PRNG key of the start.
+        """
         dtype = jnp.result_type(self.chain.mass)
         kq, kv = jax.random.split(key)
         q = jax.random.uniform(kq, (2,), dtype, -self.noise_q, self.noise_q)
@@ -102,12 +128,22 @@ class DiffRLCartpole(AbstractTask):
         return TaskState(q, qd)
 
     def observe(self, state: TaskState) -> Float[Array, " 5"]:
-        """``(x, dx, sin th, cos th, dth)`` with ``th = q - pi``."""
+        """``(x, dx, sin th, cos th, dth)`` with ``th = q - pi``.
+
+        Args:
+            state: the state.
+        """
         th = state.q[1:] - jnp.pi
         return jnp.concatenate([state.q[:1], state.qd[:1], jnp.sin(th), jnp.cos(th), state.qd[1:]])
 
     def reward(self, state: TaskState, action: Float[ArrayLike, " 1"], next_state: TaskState) -> Float[Array, ""]:
-        """``-(th^2 + 0.1 dth^2 + 0.05 x^2 + 0.1 dx^2)`` of ``next_state`` (the authors' weights)."""
+        """``-(th^2 + 0.1 dth^2 + 0.05 x^2 + 0.1 dx^2)`` of ``next_state`` (the authors' weights).
+
+        Args:
+            state: the state before (unused).
+            action: the action (unused).
+            next_state: the state the reward is of.
+        """
         del state, action
         q, qd = next_state.q, next_state.qd
         th = wrap(q[1] - jnp.pi)

@@ -60,22 +60,25 @@ the CE-APG authors' Brax v1 bodies (``Acrobot.brax_v1()``, :data:`lagrange.syste
 
 
 class AbstractSwingup(AbstractTask):
-    """A swing-up task of the CE-APG paper: the fields and the reset its tasks share.
+    """A swing-up task of the CE-APG paper: the fields and the reset its tasks share (all but ``chain``
+    keyword-only; the defaults are the paper's).
 
-    Fields (all but ``chain`` keyword-only):
-
-    - ``chain``: the chain; ``dt``: the control interval [s] (each final class has its default).
-    - ``horizon``: control steps per episode [500]; ``substeps``, ``solver``: ``substeps`` steps of ``solver`` per
-      interval [1, ``RK4()``; see the module's table].
-    - ``noise``: half-width of the uniform reset noise on every ``q`` and ``qd`` [0.01].
-    - ``upright``: the probability of starting balanced upright instead of hanging [0]; 1 gives a balance-only task,
-      a fraction is a training curriculum. The coin has its own key, so ``upright=0`` draws exactly the paper's
-      starts.
-    - ``starts``: ``None`` or an array (K, 2n) of states ``(q, qd)``: a start-state curriculum (e.g. states along a
-      known swing-up, training from the end backwards); each reset draws a row uniformly, plus the same noise,
-      instead of hanging. The ``upright`` coin still comes first.
-    - ``bodies``: a label, ``"rods"`` or ``"brax_v1"`` for a task built by those constructors (see
-      :data:`BODY_SETS`), ``None`` for one built on another chain. Only recorded, never switched on.
+    Attributes:
+        chain (Chain): the chain.
+        dt (float): the control interval [s], > 0 (each final class has its default).
+        horizon (int): control steps per episode, >= 1 (paper: 500).
+        substeps (int): steps of ``solver`` per interval, >= 1 (1; see the module's table).
+        solver (TaskSolver): the integrator (``RK4()``).
+        noise (float): half-width >= 0 of the uniform reset noise on every ``q`` [rad, m] and ``qd`` [rad/s, m/s]
+            (paper: 0.01).
+        upright (float): the probability in [0, 1] of starting balanced upright instead of hanging (paper: 0); 1
+            gives a balance-only task, a fraction is a training curriculum. The coin has its own key, so
+            ``upright=0`` draws exactly the paper's starts.
+        starts (Float[Array, "K 2*n"] | None): a start-state curriculum of ``K >= 1`` finite states ``(q, qd)``
+            (e.g. states along a known swing-up, training from the end backwards): each reset draws a row uniformly,
+            plus the same noise, instead of hanging; the ``upright`` coin still comes first. None: hanging.
+        bodies (str | None): a label, ``"rods"`` or ``"brax_v1"`` for a task built by those constructors (see
+            :data:`BODY_SETS`), None for one built on another chain. Only recorded, never switched on.
     """
 
     chain: Chain
@@ -109,7 +112,11 @@ class AbstractSwingup(AbstractTask):
     def reset(self, key: PRNGKeyArray) -> TaskState:
         """Hanging down (or a state drawn uniformly from ``starts``), with uniform noise in ``[-noise, noise]`` on
         every ``q`` and ``qd``; balanced upright instead with probability ``upright`` (1: always, a balance-only
-        task)."""
+        task).
+
+        Args:
+            key: the PRNG key of the start.
+        """
         n = self.chain.n
         dtype = jnp.result_type(self.chain.mass)
         kq, kv = jax.random.split(key)
@@ -162,9 +169,13 @@ class Acrobot(AbstractSwingup):
     reset                  hanging down, U(-0.01, 0.01) on every coordinate and velocity
     =====================  ========================================================================================
 
-    ``trig=True`` (not the paper's) observes ``(sin th, cos th, dth)`` instead of the wrapped angles, which jump by
-    2 pi at every swing through hanging. Build it with :meth:`rods` or :meth:`brax_v1`, or ``Acrobot(chain)`` on a
-    two-link chain of one's own (:func:`lagrange.systems.acrobot`).
+    Build it with :meth:`rods` or :meth:`brax_v1`, or ``Acrobot(chain)`` on a two-link chain of one's own
+    (:func:`lagrange.systems.acrobot`); the other fields are :class:`AbstractSwingup`'s.
+
+    Attributes:
+        dt (float): the control interval [s] (paper: 0.01).
+        trig (bool): observe ``(sin th, cos th, dth)`` instead of the wrapped angles, which jump by 2 pi at every
+            swing through hanging (not the paper's: False).
     """
 
     dt: float = eqx.field(static=True, default=0.01, kw_only=True)
@@ -179,13 +190,21 @@ class Acrobot(AbstractSwingup):
     @classmethod
     def rods(cls, **options) -> "Acrobot":
         """The paper's acrobot on this library's rods (:func:`lagrange.systems.acrobot`); ``options`` are the
-        task's fields (``trig``, ``horizon``, ``noise``, ``upright``, ``starts``, ``solver``, ``substeps``)."""
+        task's fields (``trig``, ``horizon``, ``noise``, ``upright``, ``starts``, ``solver``, ``substeps``).
+
+        Args:
+            **options: the task's fields, keywords (``horizon=100``, ``trig=True``...).
+        """
         return cls(systems.acrobot(), bodies="rods", **options)
 
     @classmethod
     def brax_v1(cls, **options) -> "Acrobot":
         """The paper's acrobot on the authors' Brax v1 bodies (``lagrange.systems.BRAX_V1["acrobot"]``); ``options``
-        as for :meth:`rods`."""
+        as for :meth:`rods`.
+
+        Args:
+            **options: the task's fields, keywords (``horizon=100``, ``trig=True``...).
+        """
         return cls(systems.acrobot(**systems.BRAX_V1["acrobot"]), bodies="brax_v1", **options)
 
     @property
@@ -193,11 +212,21 @@ class Acrobot(AbstractSwingup):
         return _observation_size(self, self.trig)
 
     def observe(self, state: TaskState) -> Float[Array, " observation_size"]:
-        """``(th1, th2, dth1, dth2)``, or ``(sin th1, sin th2, cos th1, cos th2, dth1, dth2)`` with ``trig``."""
+        """``(th1, th2, dth1, dth2)``, or ``(sin th1, sin th2, cos th1, cos th2, dth1, dth2)`` with ``trig``.
+
+        Args:
+            state: the state.
+        """
         return _observe(self, state, self.trig)
 
     def reward(self, state: TaskState, action: Float[ArrayLike, " m"], next_state: TaskState) -> Float[Array, ""]:
-        """``10 - (th1^2 + th2^2) - 0.01 (dth1^2 + dth2^2)`` of ``next_state``."""
+        """``10 - (th1^2 + th2^2) - 0.01 (dth1^2 + dth2^2)`` of ``next_state``.
+
+        Args:
+            state: the state before (unused).
+            action: the action (unused).
+            next_state: the state the reward is of.
+        """
         del state, action
         return _upright_reward(self, next_state)
 
@@ -216,7 +245,11 @@ class Cartpole(AbstractSwingup):
     =====================  ========================================================================================
 
     Build it with :meth:`rods` or :meth:`brax_v1`, or ``Cartpole(chain)`` on a chain of
-    :func:`lagrange.systems.cartpole`.
+    :func:`lagrange.systems.cartpole`; the other fields are :class:`AbstractSwingup`'s.
+
+    Attributes:
+        dt (float): the control interval [s] (paper: 0.04).
+        trig (bool): observe ``(x, sin th, cos th, dx, dth)`` instead of the wrapped angle (paper: False).
     """
 
     dt: float = eqx.field(static=True, default=0.04, kw_only=True)
@@ -231,13 +264,21 @@ class Cartpole(AbstractSwingup):
     @classmethod
     def rods(cls, **options) -> "Cartpole":
         """The paper's cartpole on this library's rods (:func:`lagrange.systems.cartpole`); ``options`` are the
-        task's fields (``trig``, ``horizon``, ``noise``, ``upright``, ``starts``, ``solver``, ``substeps``)."""
+        task's fields (``trig``, ``horizon``, ``noise``, ``upright``, ``starts``, ``solver``, ``substeps``).
+
+        Args:
+            **options: the task's fields, keywords (``horizon=100``, ``trig=True``...).
+        """
         return cls(systems.cartpole(), bodies="rods", **options)
 
     @classmethod
     def brax_v1(cls, **options) -> "Cartpole":
         """The paper's cartpole on the authors' Brax v1 bodies (``lagrange.systems.BRAX_V1["cartpole"]``);
-        ``options`` as for :meth:`rods`."""
+        ``options`` as for :meth:`rods`.
+
+        Args:
+            **options: the task's fields, keywords (``horizon=100``, ``trig=True``...).
+        """
         return cls(systems.cartpole(**systems.BRAX_V1["cartpole"]), bodies="brax_v1", **options)
 
     @property
@@ -245,11 +286,21 @@ class Cartpole(AbstractSwingup):
         return _observation_size(self, self.trig)
 
     def observe(self, state: TaskState) -> Float[Array, " observation_size"]:
-        """``(x, th, dx, dth)``, or ``(x, sin th, cos th, dx, dth)`` with ``trig``."""
+        """``(x, th, dx, dth)``, or ``(x, sin th, cos th, dx, dth)`` with ``trig``.
+
+        Args:
+            state: the state.
+        """
         return _observe(self, state, self.trig)
 
     def reward(self, state: TaskState, action: Float[ArrayLike, " m"], next_state: TaskState) -> Float[Array, ""]:
-        """``-th^2`` of ``next_state``."""
+        """``-th^2`` of ``next_state``.
+
+        Args:
+            state: the state before (unused).
+            action: the action (unused).
+            next_state: the state the reward is of.
+        """
         del state, action
         th = self.angles(next_state)
         return -jnp.sum(th**2)
@@ -268,9 +319,12 @@ class DoubleCartpole(AbstractSwingup):
     reset                  hanging down, U(-0.01, 0.01) on every coordinate and velocity (the cart's included)
     =====================  ========================================================================================
 
-    The observation is always the trigonometric layout (``trig`` is True, a class constant). Build it with
-    :meth:`rods` or :meth:`brax_v1`, or ``DoubleCartpole(chain)`` on a chain of
-    :func:`lagrange.systems.double_cartpole`.
+    Build it with :meth:`rods` or :meth:`brax_v1`, or ``DoubleCartpole(chain)`` on a chain of
+    :func:`lagrange.systems.double_cartpole`; the other fields are :class:`AbstractSwingup`'s.
+
+    Attributes:
+        dt (float): the control interval [s] (paper: 0.01).
+        trig (ClassVar[bool]): True: the observation is always the trigonometric layout.
     """
 
     dt: float = eqx.field(static=True, default=0.01, kw_only=True)
@@ -285,13 +339,21 @@ class DoubleCartpole(AbstractSwingup):
     @classmethod
     def rods(cls, **options) -> "DoubleCartpole":
         """The paper's double cartpole on this library's rods (:func:`lagrange.systems.double_cartpole`); ``options``
-        are the task's fields (``horizon``, ``noise``, ``upright``, ``starts``, ``solver``, ``substeps``)."""
+        are the task's fields (``horizon``, ``noise``, ``upright``, ``starts``, ``solver``, ``substeps``).
+
+        Args:
+            **options: the task's fields, keywords (``horizon=100``, ``trig=True``...).
+        """
         return cls(systems.double_cartpole(), bodies="rods", **options)
 
     @classmethod
     def brax_v1(cls, **options) -> "DoubleCartpole":
         """The paper's double cartpole on the authors' Brax v1 bodies
-        (``lagrange.systems.BRAX_V1["double_cartpole"]``); ``options`` as for :meth:`rods`."""
+        (``lagrange.systems.BRAX_V1["double_cartpole"]``); ``options`` as for :meth:`rods`.
+
+        Args:
+            **options: the task's fields, keywords (``horizon=100``, ``trig=True``...).
+        """
         return cls(systems.double_cartpole(**systems.BRAX_V1["double_cartpole"]), bodies="brax_v1", **options)
 
     @property
@@ -299,11 +361,21 @@ class DoubleCartpole(AbstractSwingup):
         return _observation_size(self, True)
 
     def observe(self, state: TaskState) -> Float[Array, " observation_size"]:
-        """``(x, sin th1, sin th2, cos th1, cos th2, dx, dth1, dth2)``."""
+        """``(x, sin th1, sin th2, cos th1, cos th2, dx, dth1, dth2)``.
+
+        Args:
+            state: the state.
+        """
         return _observe(self, state, True)
 
     def reward(self, state: TaskState, action: Float[ArrayLike, " m"], next_state: TaskState) -> Float[Array, ""]:
-        """``10 - (th1^2 + th2^2 + x^2) - 0.01 (dth1^2 + dth2^2)`` of ``next_state``."""
+        """``10 - (th1^2 + th2^2 + x^2) - 0.01 (dth1^2 + dth2^2)`` of ``next_state``.
+
+        Args:
+            state: the state before (unused).
+            action: the action (unused).
+            next_state: the state the reward is of.
+        """
         del state, action
         return _upright_reward(self, next_state) - next_state.q[0] ** 2
 
@@ -323,7 +395,12 @@ class ChainSwingup(AbstractSwingup):
     =====================  ========================================================================================
 
     ``ChainSwingup(chain, dt=0.05, horizon=100, upright=1.0)`` is a balance-only task on ``chain``. Raises
-    ``ValueError`` for a chain with a prismatic joint or without a motor.
+    ``ValueError`` for a chain with a prismatic joint or without a motor. The other fields are
+    :class:`AbstractSwingup`'s.
+
+    Attributes:
+        dt (float): the control interval [s] (0.01).
+        trig (bool): observe ``(sin th, cos th, dth)`` instead of the wrapped angles.
     """
 
     dt: float = eqx.field(static=True, default=0.01, kw_only=True)
@@ -343,11 +420,21 @@ class ChainSwingup(AbstractSwingup):
         return _observation_size(self, self.trig)
 
     def observe(self, state: TaskState) -> Float[Array, " observation_size"]:
-        """``(th, dth)``, or ``(sin th, cos th, dth)`` with ``trig``."""
+        """``(th, dth)``, or ``(sin th, cos th, dth)`` with ``trig``.
+
+        Args:
+            state: the state.
+        """
         return _observe(self, state, self.trig)
 
     def reward(self, state: TaskState, action: Float[ArrayLike, " m"], next_state: TaskState) -> Float[Array, ""]:
-        """``10 - sum th_i^2 - 0.01 sum dth_i^2`` of ``next_state``."""
+        """``10 - sum th_i^2 - 0.01 sum dth_i^2`` of ``next_state``.
+
+        Args:
+            state: the state before (unused).
+            action: the action (unused).
+            next_state: the state the reward is of.
+        """
         del state, action
         return _upright_reward(self, next_state)
 

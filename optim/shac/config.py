@@ -18,23 +18,34 @@ __all__ = ["SHACConfig"]
 @dataclasses.dataclass(frozen=True)
 class SHACConfig(AlgorithmConfig):
     """SHAC settings; the defaults are the authors' cartpole swing-up config
-    (``examples/cfg/shac/cartpole_swing_up.yaml`` in NVlabs/DiffRL; their names in brackets). The task (its
+    (``examples/cfg/shac/cartpole_swing_up.yaml`` in NVlabs/DiffRL; their names and values below). The task (its
     ``horizon`` is the authors' ``episode_length``) and the actor (:class:`policies.Actor`, their ``actor_mlp`` units
     and ``actor_logstd_init``) are passed to :func:`optim.train`, not set here.
 
-    num_envs: parallel environments [num_actors = 64].
-    short_horizon: steps per window, h [steps_num = 32].
-    iterations: training epochs, one window each [max_epochs = 500].
-    gamma: discount [0.99].
-    lam: TD(lambda) parameter of the critic targets [lambda = 0.95].
-    critic_iterations: passes over the window's data per epoch [16].
-    critic_minibatches: contiguous minibatches per pass [num_batch = 4].
-    target_alpha: target critic soft update ``target = alpha target + (1 - alpha) critic`` [target_critic_alpha = 0.2].
-    actor_lr, critic_lr: initial Adam step sizes [1e-2, 1e-3], decayed linearly to lr_end [1e-5] (lr_schedule = linear).
-    adam_b1, adam_b2, adam_eps: Adam's betas and epsilon [betas = (0.7, 0.95); PyTorch eps 1e-8].
-    actor_grad_norm, critic_grad_norm: global gradient-norm clip, None = none [grad_norm = 1.0, truncate_grads].
-    critic_units: hidden widths of the critic's ELU + LayerNorm MLP [critic_mlp (64, 64)].
-    normalize: running observation mean/std normalisation [obs_rms = True].
+    Attributes:
+        num_envs (int): parallel environments, >= 1 (authors: num_actors = 64).
+        short_horizon (int): control steps per window, h, >= 1 (authors: steps_num = 32).
+        iterations (int): training epochs, one window each, >= 1 (authors: max_epochs = 500).
+        gamma (float): discount, in (0, 1] (authors: 0.99).
+        lam (float): TD(lambda) parameter of the critic targets, in [0, 1] (authors: lambda = 0.95).
+        critic_iterations (int): passes over the window's data per epoch, >= 0 (authors: 16).
+        critic_minibatches (int): contiguous minibatches per pass, 1 <= critic_minibatches <= num_envs *
+            short_horizon (authors: num_batch = 4).
+        target_alpha (float): the target critic's soft update ``target = alpha target + (1 - alpha) critic``, in
+            [0, 1] (authors: target_critic_alpha = 0.2).
+        actor_lr (float): the actor's initial Adam step size, > 0, decayed linearly to ``lr_end`` (authors: 1e-2,
+            lr_schedule = linear).
+        critic_lr (float): the critic's, > 0 (authors: 1e-3).
+        lr_end (float): both step sizes at the last epoch, > 0 (authors: 1e-5).
+        adam_b1 (float): Adam's first beta, in [0, 1) (authors: 0.7).
+        adam_b2 (float): Adam's second beta, in [0, 1) (authors: 0.95).
+        adam_eps (float): Adam's epsilon, > 0 (authors: PyTorch's 1e-8).
+        actor_grad_norm (float | None): the actor gradient's global-norm clip (PyTorch's ``clip_grad_norm_``), > 0;
+            None: none (authors: grad_norm = 1.0, truncate_grads).
+        critic_grad_norm (float | None): the critic gradient's (authors: 1.0).
+        critic_units (tuple[int, ...]): hidden widths of the critic's ELU + LayerNorm MLP, each >= 1 (authors:
+            critic_mlp (64, 64)).
+        normalize (bool): running observation mean/std normalisation (authors: obs_rms = True).
     """
 
     num_envs: int = 64
@@ -83,17 +94,33 @@ class SHACConfig(AlgorithmConfig):
         check_bool(c, "normalize", self.normalize)
 
     def env_steps_per_epoch(self) -> int:
+        """Simulated control steps of one epoch, ``num_envs * short_horizon``."""
         return self.num_envs * self.short_horizon
 
     def learning_rates(self, epoch):
-        """``(actor_lr, critic_lr)`` of epoch ``epoch`` (0-based): linear from the start value to ``lr_end``."""
+        """The learning rates of an epoch, linear from their start values to ``lr_end``.
+
+        Args:
+            epoch: the 0-based epoch, an int or a traced integer.
+
+        Returns:
+            ``(actor_lr, critic_lr)``.
+        """
         frac = jnp.asarray(epoch) / self.iterations
         return (self.actor_lr + (self.lr_end - self.actor_lr) * frac,
                 self.critic_lr + (self.lr_end - self.critic_lr) * frac)
 
     def make_trainer(self, task, policy, *, objective: Callable | None = None):
-        """SHAC on ``task`` with the actor ``policy`` (a :class:`policies.Actor`); ``objective`` is not used (SHAC's
-        actor loss is its own) and must be None."""
+        """:func:`optim.shac.make_trainer` of this config.
+
+        Args:
+            task: the task to train on, and the one the trainer evaluates.
+            policy: the actor, a :class:`policies.Actor` (SHAC draws its initial weights with ``reinit``).
+            objective: must be None: SHAC's actor loss is its own.
+
+        Raises:
+            ValueError: for an ``objective``.
+        """
         if objective is not None:
             raise ValueError("SHAC has its own actor loss: objective must be None")
         return make_trainer(self, task, policy)

@@ -14,11 +14,19 @@ from policies.actor_critic import Actor, Critic
 def td_lambda_targets(rewards, next_values, dones, gamma: float, lam: float):
     """TD(lambda) value targets of one window, truncated at episode ends and at the window's end.
 
-    ``rewards`` (T, N): reward of step t; ``next_values`` (T, N): the (target) critic's value of the
-    state step t lands in; ``dones`` (T, N) bool: an episode ends at step t (the last row is treated
-    as done: the window ends). Returns (T, N) targets ``G_t = r_t + gamma V_{t+1}`` where ``done_t``,
-    else ``G_t = r_t + gamma ((1 - lam) V_{t+1} + lam G_{t+1})`` -- the lambda-weighted average of the
-    n-step returns ``(1 - lam) sum_n lam^(n-1) G^(n) + lam^(k-1) G^(k)`` up to the next end at k steps.
+    ``G_t = r_t + gamma V_{t+1}`` where ``done_t``, else ``G_t = r_t + gamma ((1 - lam) V_{t+1} + lam G_{t+1})``: the
+    lambda-weighted average of the n-step returns ``(1 - lam) sum_n lam^(n-1) G^(n) + lam^(k-1) G^(k)`` up to the
+    next end at k steps.
+
+    Args:
+        rewards: the reward of each step, shape ``(T, N)``.
+        next_values: the (target) critic's value of the state each step lands in, ``(T, N)``.
+        dones: bool ``(T, N)``: an episode ends at step t (the last row is treated as done: the window ends).
+        gamma: the discount.
+        lam: the TD(lambda) parameter.
+
+    Returns:
+        The targets, shape ``(T, N)``.
     """
     dones = jnp.asarray(dones, bool).at[-1].set(True)
 
@@ -32,32 +40,68 @@ def td_lambda_targets(rewards, next_values, dones, gamma: float, lam: float):
 
 
 def soft_update(target, online, alpha: float):
-    """``alpha target + (1 - alpha) online`` leaf by leaf (the authors' target critic update)."""
+    """The authors' target critic update, ``alpha target + (1 - alpha) online`` leaf by leaf.
+
+    Args:
+        target: the target network (a pytree).
+        online: the online network, of the same structure.
+        alpha: the weight of the target, in [0, 1].
+    """
     return jax.tree_util.tree_map(lambda t, o: alpha * t + (1 - alpha) * o, target, online)
 
 
 class Window(NamedTuple):
-    """What the actor's rollout leaves for the critic and the logs (all without gradient)."""
+    """What the actor's rollout of ``h`` steps in ``N`` environments leaves for the critic and the logs (all without
+    gradient).
 
-    obs: jax.Array  # (h, N, obs) normalised observations at the start of each step
-    rewards: jax.Array  # (h, N)
-    dones: jax.Array  # (h, N) bool, an episode ended at this step
-    next_values: jax.Array  # (h, N) target critic's value of the state each step lands in (pre-reset)
-    raw_obs: jax.Array  # (h + 1, N, obs) raw observations for the running statistics
-    env_state: Any  # TaskState (N, n) after the window (after resets)
-    progress: jax.Array  # (N,) steps into the current episode
-    ep_return: jax.Array  # (N,) undiscounted return so far of the current episode
-    finished_return: jax.Array  # () sum of the returns of the episodes that ended in the window
-    finished: jax.Array  # () how many ended
+    Attributes:
+        obs (Float[Array, "h N obs"]): the normalised observations at the start of each step.
+        rewards (Float[Array, "h N"]): each step's reward.
+        dones (Bool[Array, "h N"]): an episode ended at this step.
+        next_values (Float[Array, "h N"]): the target critic's value of the state each step lands in (before a
+            reset).
+        raw_obs (Float[Array, "h+1 N obs"]): the raw observations, for the running statistics.
+        env_state (TaskState): the states after the window (after resets), ``(N, n)`` each.
+        progress (Int[Array, "N"]): control steps into each current episode.
+        ep_return (Float[Array, "N"]): each current episode's undiscounted return so far.
+        finished_return (Float[Array, ""]): the summed returns of the episodes that ended in the window.
+        finished (Int[Array, ""]): how many ended.
+    """
+
+    obs: jax.Array
+    rewards: jax.Array
+    dones: jax.Array
+    next_values: jax.Array
+    raw_obs: jax.Array
+    env_state: Any
+    progress: jax.Array
+    ep_return: jax.Array
+    finished_return: jax.Array
+    finished: jax.Array
 
 
 def actor_loss(actor: Actor, target_critic: Critic, normalizer, task, env_state, progress, ep_return, key, *,
                short_horizon: int, horizon: int, gamma: float):
     """The SHAC actor loss of one window and its :class:`Window` (``has_aux`` style).
 
-    ``env_state`` (batched TaskState, N envs) is cut from the graph at the window's start;
-    episodes that reach ``horizon`` inside the window are bootstrapped with the target critic's value
-    of their last state and reset, the gradient cut.
+    Episodes that reach ``horizon`` inside the window are bootstrapped with the target critic's value of their last
+    state and reset, the gradient cut.
+
+    Args:
+        actor: the actor whose samples act.
+        target_critic: the target critic.
+        normalizer: the observation normaliser (frozen over the window), or None.
+        task: the task.
+        env_state: the ``N`` environments' states (a batched TaskState), cut from the graph at the window's start.
+        progress: control steps into each episode, ``(N,)``.
+        ep_return: each episode's return so far, ``(N,)``.
+        key: PRNG key of the actions' noise and the resets.
+        short_horizon: the window's steps ``h``.
+        horizon: the task's episode length.
+        gamma: the discount.
+
+    Returns:
+        ``(loss, window)``.
     """
     n = progress.shape[0]
     env_state = jax.lax.stop_gradient(env_state)

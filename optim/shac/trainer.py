@@ -23,17 +23,33 @@ __all__ = ["SHACState", "make_trainer"]
 
 
 class SHACState(NamedTuple):
+    """SHAC's training state (``N = num_envs`` environments).
+
+    Attributes:
+        actor (Actor): the actor.
+        critic (Critic): the critic.
+        target_critic (Critic): the target critic.
+        actor_opt: the actor's Adam state.
+        critic_opt: the critic's Adam state.
+        normalizer (Normalizer | None): the running observation statistics (None without normalisation).
+        env_state (TaskState): the environments' states, ``q`` and ``qd`` of shape ``(N, n)``.
+        progress (Int[Array, "N"]): control steps into each environment's episode.
+        ep_return (Float[Array, "N"]): each environment's undiscounted return so far.
+        key (PRNGKeyArray): the run's key; epoch ``e`` draws from ``fold_in(key, e)``.
+        iteration (Int[Array, ""]): epochs done, int32.
+    """
+
     actor: Actor
     critic: Critic
     target_critic: Critic
     actor_opt: Any
     critic_opt: Any
     normalizer: Normalizer | None
-    env_state: TaskState  # (N, n) batched
-    progress: jax.Array  # (N,) int32
-    ep_return: jax.Array  # (N,)
-    key: jax.Array  # the run's key; epoch e draws from fold_in(key, e)
-    iteration: jax.Array  # () int32, epochs done
+    env_state: TaskState
+    progress: jax.Array
+    ep_return: jax.Array
+    key: jax.Array
+    iteration: jax.Array
 
 
 def _normalizer(size, dtype):
@@ -43,9 +59,24 @@ def _normalizer(size, dtype):
 
 
 def make_trainer(config, task: AbstractTask, actor: Actor) -> Trainer:
-    """SHAC on ``task`` with the settings ``config`` (an :class:`optim.SHACConfig`); the actor starts from ``actor.reinit(k)`` for a key ``k`` drawn from the run's key.
-    ``update`` is one jitted epoch; the environments are sharded over the largest number of ``jax.devices()`` that
-    divides ``num_envs``."""
+    """SHAC on ``task``: ``update`` is one jitted epoch; the environments are sharded over the largest number of
+    ``jax.devices()`` that divides ``num_envs``.
+
+    Args:
+        config: the settings, an :class:`optim.SHACConfig`.
+        task: the task to train on, and the one the trainer evaluates.
+        actor: a :class:`policies.Actor`, its architecture: the run starts from ``actor.reinit(k)`` for a key ``k``
+            drawn from the run's key.
+
+    Returns:
+        The :class:`optim.Trainer`; its metrics: ``actor_loss``, ``value_loss``, ``grad_norm``, ``episodes`` and
+        ``episode_return`` (of the episodes that ended in the window, NaN if none did), ``mean_reward``, ``actor_lr``,
+        ``log_std``, ``nonfinite`` (updates skipped), ``restarted_envs`` and ``nonfinite_envs`` (how many and which
+        environments went non-finite and restarted), ``env_steps``.
+
+    Raises:
+        TypeError: for a policy that is not an :class:`policies.Actor`.
+    """
     if not isinstance(actor, Actor):
         raise TypeError(f"SHAC trains a stochastic policies.Actor, got {type(actor).__name__}")
     N, h, T = config.num_envs, config.short_horizon, task.horizon
