@@ -38,6 +38,12 @@ class _Neg:
         self.v = v
 
 
+def sign_and_magnitude(x):
+    """``(negative, magnitude)``: ``x`` is ``-magnitude`` if ``negative``, else ``magnitude`` (a sign kept symbolic by
+    :func:`negated` is taken off; any other ``x`` is its own magnitude)."""
+    return _split(x)
+
+
 def _split(x):
     """``(negative, magnitude)``: ``x`` is ``-magnitude`` if ``negative``, else ``magnitude``."""
     return (True, x.v) if isinstance(x, _Neg) else (False, x)

@@ -23,7 +23,7 @@ import math
 
 from lagrange import _scalar as s
 from lagrange._scalar import cos_sin
-from lagrange.chain import Chain
+from lagrange.chain import WORLD, Chain
 
 BASE = -1
 
@@ -46,12 +46,14 @@ class _StructureOnly:
 
     def __init__(self, chain: Chain):
         self.joints, self.axes, self.n = chain.joints, chain.axes, chain.n
+        self.parents, self.attached, self.senses = chain.parents, chain.attached, chain.senses
         self.frame_offsets = chain.frame_offsets
         self.armatured, self.damped = chain.armatured, chain.damped
         self.com_normal = None if chain.com_normal is None else SYMBOL
         self.mass = self.length = self.com = self.inertia = SYMBOL
         self.armature = None if chain.armature is None else SYMBOL
         self.gravity = None if chain.gravity is None else SYMBOL
+        self.attach = None if chain.attach is None else SYMBOL
 
 
 class Geometry:
@@ -78,45 +80,56 @@ class Geometry:
         else:
             self.q = [q[..., i] for i in range(n)]
             self.qd = None if qd is None else [qd[..., i] for i in range(n)]
-        # angle index of each link: last revolute joint <= i, or BASE
-        ang, revs, a = [], {BASE: ()}, BASE
+        # angle index of each link: the last revolute joint on its path from the world (itself included), or BASE
+        ang, revs = [], {BASE: ()}
         for i, joint in enumerate(chain.joints):
+            a = BASE if chain.parents[i] == WORLD else ang[chain.parents[i]]
             if joint == "revolute":
                 revs[i] = revs[a] + (i,)
                 a = i
             ang.append(a)
         self.ang, self.revs = ang, revs
+        self.flipped = frozenset(i for i, sense in enumerate(chain.senses) if sense < 0)
         self._trig: dict = {}
-        # positions of every centre of mass: lists of (coef, qk, kind, angle). A link's frame is at
+        # positions of every joint origin and centre of mass: lists of (coef, qk, kind, angle). A link's frame is at
         # phi_a + off (a: its angle variable, off: the static sum of the frame offsets), so a vector
         # c_d d + c_e e of the link's frame is (c_d cos off - c_e sin off) d(phi_a) + (c_d sin off + c_e cos off) e(phi_a).
         off = chain.frame_offsets()
         normal = chain.com_normal
-        terms: list = []
+        attach = {i: k for k, i in enumerate(chain.attached)}
+        origins: list = []
         coms = []
         for i, joint in enumerate(chain.joints):
-            parent = ang[i - 1] if i > 0 else BASE
-            parent_off = off[i - 1] if i > 0 else 0.0
-            if i > 0:
-                terms = terms + _rotated(chain.length[i - 1], None, parent_off, parent)
+            p = chain.parents[i]
+            terms = [] if p == WORLD else origins[p]
+            parent = BASE if p == WORLD else ang[p]
+            parent_off = 0.0 if p == WORLD else off[p]
+            if i in attach:  # (x, z) in the parent's frame: -z along d, x along e
+                point = chain.attach[attach[i]]
+                terms = terms + _rotated(s.neg(point[1]), point[0], parent_off, parent)
+            elif p != WORLD:
+                terms = terms + _rotated(chain.length[p], None, parent_off, parent)
             if joint == "prismatic":
                 ax = chain.axes[i] + parent_off
                 if ax == 0.0:
                     terms = terms + [(1.0, i, "e", parent)]
                 else:
                     terms = terms + [(math.cos(ax), i, "e", parent), (-math.sin(ax), i, "d", parent)]
+            origins.append(terms)
             coms.append(terms + _rotated(chain.com[i], None if normal is None else normal[i], off[i], ang[i]))
         self.coms = coms
 
     # -- trigonometry ---------------------------------------------------------------------
     def _angle_sum(self, joints):
-        return s.total(self.q[j] for j in joints)
+        """``sum_j sense_j q_j``."""
+        return s.total(s.negated(self.q[j]) if j in self.flipped else self.q[j] for j in joints)
 
     def _sincos(self, x):
         """(sin x, cos x), each traced only when first used."""
+        negative, x = s.sign_and_magnitude(x)  # sin(-x) = -sin x, cos(-x) = cos x
         if x is SYMBOL:
             return SYMBOL, SYMBOL
-        return _Lazy(self._jnp.sin, x), _Lazy(self._jnp.cos, x)
+        return _Lazy(self._jnp.sin, x, negative), _Lazy(self._jnp.cos, x)
 
     def _abs(self, a):
         if a == BASE:
@@ -145,8 +158,16 @@ class Geometry:
                 (sh, ch), (sl, cl) = [tuple(map(_force, self._abs(a))) for a in (hi, lo)]
                 self._trig[key] = (s.sub(s.mul(sh, cl), s.mul(ch, sl)), s.add(s.mul(ch, cl), s.mul(sh, sl)))
             else:
-                self._trig[key] = self._sincos(self._angle_sum([j for j in self.revs[hi] if j > lo]))
+                self._trig[key] = self._sincos(self._angle_difference(hi, lo))
         return _force(self._trig[key][which])
+
+    def _angle_difference(self, hi, lo):
+        """``phi_hi - phi_lo``: the revolute joints on ``hi``'s path and not ``lo``'s, less those on ``lo``'s and not
+        ``hi``'s (none when ``lo`` is on ``hi``'s path, as in a serial chain)."""
+        mine, theirs = self.revs[hi], set(self.revs[lo])
+        ahead = self._angle_sum([j for j in mine if j not in theirs])
+        behind = [j for j in self.revs[lo] if j not in set(mine)]
+        return ahead if not behind else s.sub(ahead, self._angle_sum(behind))
 
     def rel_sin(self, a, b):
         """sin(phi_a - phi_b)."""
@@ -188,15 +209,17 @@ class Geometry:
         for c, qk, kind, a in self.coms[i]:
             if qk == j:
                 _acc(out, (kind, a), c)
-            if rev_j is not None and j in self.revs[a]:
-                if kind == "d":
-                    _acc(out, ("e", a), self._coef(c, qk))
+            if rev_j is not None and j in self.revs[a]:  # d/dphi d = e, d/dphi e = -d; dphi/dq_j = sense_j
+                flip = j in self.flipped
+                if (kind == "d") != flip:
+                    _acc(out, ("e" if kind == "d" else "d", a), self._coef(c, qk))
                 else:
-                    _acc(out, ("d", a), s.negated(self._coef(c, qk)))
+                    _acc(out, ("e" if kind == "d" else "d", a), s.negated(self._coef(c, qk)))
         return out
 
     def rate(self, a):
-        return s.total(self.qd[j] for j in self.revs[a])
+        """``d phi_a / dt = sum_j sense_j qd_j``."""
+        return s.total(s.negated(self.qd[j]) if j in self.flipped else self.qd[j] for j in self.revs[a])
 
     def bias_acceleration(self, i):
         """(dJ_i/dt) qd, the acceleration of c_i at zero joint acceleration."""
@@ -244,17 +267,17 @@ def _rotated(c_d, c_e, off: float, a) -> list:
 
 
 class _Lazy:
-    """``fn(x)``, traced on first use and then reused."""
+    """``fn(x)`` (``-fn(x)``, the sign kept symbolic, if ``negate``), traced on first use and then reused."""
 
-    def __init__(self, fn, x):
-        self.fn, self.x, self.value = fn, x, None
+    def __init__(self, fn, x, negate: bool = False):
+        self.fn, self.x, self.negate, self.value = fn, x, negate, None
 
 
 def _force(v):
     if isinstance(v, _Lazy):
         if v.value is None:
             v.value = v.fn(v.x)
-        return v.value
+        return s.negated(v.value) if v.negate else v.value
     return v
 
 

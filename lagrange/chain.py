@@ -1,30 +1,37 @@
-"""Planar serial chains: links, joints and their physical parameters.
+"""Planar kinematic trees (a serial chain is the special case): links, joints and their physical parameters.
 
 Conventions (see also the docs' "Conventions" page):
 
-- The chain lives in the vertical x-z plane; gravity points along -z.
+- The model lives in the vertical x-z plane; gravity points along -z.
 - Every body frame has an origin ``p`` and an angle ``phi``. The link direction is
-  ``d(phi) = (sin phi, -cos phi)`` and its normal ``e(phi) = (cos phi, sin phi)``. The base frame
-  has ``p = 0`` and ``phi = 0``: links hang straight down and ``e`` points along +x.
-- Link ``i`` starts at the tip of link ``i-1``: ``p_i = p_{i-1} + l_{i-1} d(phi_{i-1})``.
-- ``joint="revolute"``: ``phi_i = phi_{i-1} + q_i``. ``joint="prismatic"``: ``phi_i = phi_{i-1}``
-  and the frame slides by ``q_i`` along ``e(phi_{i-1} + axis)``; a prismatic base joint with
-  ``axis=0`` is a cart on the x axis.
+  ``d(phi) = (sin phi, -cos phi)`` and its normal ``e(phi) = (cos phi, sin phi)``; a point given in a link's frame as
+  ``(x, z)`` sits at ``p + x e(phi) - z d(phi)`` (the frame's local x along ``e``, its local z against ``d``, as the
+  body frames of the MJCF :func:`lagrange.interop.mjcf.to_mjcf` writes). The world frame has ``p = 0`` and
+  ``phi = 0``: ``d`` points down and ``e`` along +x, so its local axes are the world's.
+- Every link has a parent: the world, or a link listed before it (links are listed parents first). By default a link's
+  parent is the link listed before it (the world for the first), which makes a serial chain; several links may share
+  a parent (branches) and several may hang from the world (a forest).
+- Link ``i`` starts at its ``attach`` point in its parent's frame, by default the parent's tip
+  ``(0, -length_parent)`` (the world's origin for a link of the world): ``p_i = p_parent + l_parent d(phi_parent)``.
+- ``joint="revolute"``: ``phi_i = phi_parent + q_i`` (``- q_i`` for a joint of ``sense=-1``). ``joint="prismatic"``: ``phi_i = phi_parent`` and the frame
+  slides by ``q_i`` along ``e(phi_parent + axis)``; a prismatic joint of the world with ``axis=0`` is a cart on the x
+  axis.
 - ``offset`` (static, default 0) turns a link's frame against its parent's at ``q = 0``:
-  ``phi_i = phi_{i-1} + offset_i (+ q_i)``, so a revolute joint's zero need not hang along its
-  parent (an upright link is ``offset = pi``).
+  ``phi_i = phi_parent + offset_i (+ q_i)``, so a revolute joint's zero need not hang along its parent (an upright
+  link is ``offset = pi``).
 - The centre of mass is at ``p_i + com d(phi_i) + com_normal e(phi_i)`` (default ``com = length / 2``,
   ``com_normal = 0``); ``inertia`` is
   the moment of inertia about the centre of mass, normal to the plane (default
   ``mass length^2 / 12``, a thin rod). ``damping`` is viscous (generalized force
-  ``-damping qd_i``), ``armature`` is added to ``M_ii``, and ``gear`` makes the joint actuated
+  ``-damping qd_i``), ``stiffness`` a joint spring (generalized force ``-stiffness (q_i - springref)``),
+  ``armature`` is added to ``M_ii``, and ``gear`` makes the joint actuated
   (generalized force ``gear u_k``, ``k`` counting actuated joints in order); a ``control_range``
   ``(lo, hi)`` clamps ``u_k`` into it before the gear, as MuJoCo clamps a limited ``ctrl``.
 
-Structure is static: the number of links, the joint kinds, the prismatic axes, the frame
-offsets, the control ranges, which joints are actuated and which optional terms exist. A term given as exactly zero (no damping, no
-armature, zero gravity) is structurally absent and costs nothing in the compiled program; give
-it a non-zero value if you want to differentiate with respect to it.
+Structure is static: the number of links, their parents, the joint kinds, the prismatic axes, the frame
+offsets, the control ranges, which joints are actuated and which optional terms exist. A term given as exactly zero
+(no damping, no spring, no armature, zero gravity, an attach point left at its default) is structurally absent and
+costs nothing in the compiled program; give it a non-zero value if you want to differentiate with respect to it.
 
 Building a chain checks its parameters and stacks them, and computes nothing: no dynamics and no
 JAX operation (concrete values are stacked in NumPy and transferred with ``jax.device_put``). A
@@ -35,7 +42,6 @@ one that is singular only at some configurations is reported by
 
 from __future__ import annotations
 
-import itertools
 import math
 from typing import Sequence
 
@@ -47,6 +53,9 @@ from jaxtyping import Array, ArrayLike, Float
 
 JOINTS = ("revolute", "prismatic")
 """The joint kinds a :class:`Link` may have."""
+
+WORLD = -1
+"""The ``parent`` of a link that hangs from the world."""
 
 
 def _concrete(x):
@@ -84,6 +93,26 @@ def _check_scalar(name: str, value, *, positive: bool = False, nonnegative: bool
     return value
 
 
+def _check_point(name: str, value) -> None:
+    """``None`` or a pair of finite reals (a point ``(x, z)``), else a ``TypeError``/``ValueError`` naming ``name``."""
+    if value is None:
+        return
+    if isinstance(value, (str, bool, np.bool_)):
+        raise TypeError(f"Link.{name} must be a point (x, z) of two real numbers or None, got {value!r}")
+    if isinstance(value, jax.core.Tracer):
+        if jnp.shape(value) != (2,):
+            raise ValueError(f"Link.{name} must be a point (x, z) of shape (2,), got shape {jnp.shape(value)}")
+        return
+    try:
+        c = np.asarray([0.0 if isinstance(v, jax.core.Tracer) else _concrete(v) for v in list(value)], dtype=float)
+    except (TypeError, ValueError) as err:
+        raise TypeError(f"Link.{name} must be a point (x, z) of two real numbers or None, got {value!r}") from err
+    if c.shape != (2,):
+        raise ValueError(f"Link.{name} must be a point (x, z) of two real numbers, got shape {c.shape}")
+    if not np.all(np.isfinite(c)):
+        raise ValueError(f"Link.{name} must be finite, got {value!r}")
+
+
 class Link(eqx.Module):
     """One link of a planar chain and the joint that connects it to its parent.
 
@@ -108,6 +137,16 @@ class Link(eqx.Module):
         control_range: ``(lo, hi)`` with ``lo < hi``: the control is clamped into it before the gear
             (MuJoCo's ``ctrlrange``); ``None`` (the default) leaves it unbounded. Only for an actuated
             joint; static.
+        parent: the link this one hangs from: the index of a link listed before it, or :data:`WORLD` (-1);
+            ``None`` (the default) is the link listed just before it (the world for the first link); static.
+        attach: where the joint sits on the parent, ``(x, z)`` in the parent's frame [m] (its local x along
+            ``e``, local z against ``d``; the world's axes for a link of the world); ``None`` (the default) is the
+            parent's tip ``(0, -length)`` (the origin for a link of the world).
+        stiffness: joint spring [N m/rad or N/m], >= 0: generalized force ``-stiffness (q - springref)``.
+        springref: the spring's rest coordinate [rad or m] (MuJoCo's ``springref``).
+        sense: ``1`` (the default) or ``-1``: the way a revolute joint turns, ``phi_i = phi_parent + sense q_i``
+            (``-1``: a MuJoCo hinge about ``+y`` among hinges about ``-y``, as in the Gymnasium hopper's root);
+            static. A prismatic joint's direction is its ``axis`` (``sense`` must be 1).
     """
 
     joint: str = eqx.field(static=True)
@@ -122,6 +161,11 @@ class Link(eqx.Module):
     com_normal: Float[ArrayLike, ""] = 0.0
     offset: float = eqx.field(static=True, default=0.0)
     control_range: tuple[float, float] | None = eqx.field(static=True, default=None)
+    parent: int | None = eqx.field(static=True, default=None)
+    attach: Float[ArrayLike, "2"] | None = None
+    stiffness: Float[ArrayLike, ""] = 0.0
+    springref: Float[ArrayLike, ""] = 0.0
+    sense: int = eqx.field(static=True, default=1)
 
     def __init__(
         self,
@@ -138,6 +182,11 @@ class Link(eqx.Module):
         com_normal: Float[ArrayLike, ""] = 0.0,
         offset: float = 0.0,
         control_range: tuple[float, float] | None = None,
+        parent: int | None = None,
+        attach: Float[ArrayLike, "2"] | None = None,
+        stiffness: Float[ArrayLike, ""] = 0.0,
+        springref: Float[ArrayLike, ""] = 0.0,
+        sense: int = 1,
     ):
         if isinstance(joint, np.str_):
             joint = str(joint)
@@ -155,6 +204,15 @@ class Link(eqx.Module):
             if gear is None:
                 raise ValueError("Link.control_range is given but the joint is not actuated (gear=None); give a gear")
             control_range = (lo, hi)
+        if parent is not None:
+            if isinstance(parent, (bool, np.bool_)) or not isinstance(parent, (int, np.integer)) or parent < WORLD:
+                raise ValueError(f"Link.parent must be None (the link listed before it), -1 (the world) or the index of "
+                                 f"a link listed before it, got {parent!r}")
+            parent = int(parent)
+        if isinstance(sense, (bool, np.bool_)) or sense not in (1, -1):
+            raise ValueError(f"Link.sense must be 1 or -1, got {sense!r}")
+        if joint == "prismatic" and sense != 1:
+            raise ValueError("Link.sense must be 1 for a prismatic joint; reverse a slide by turning its axis by pi")
         self.joint = joint
         self.mass = mass
         self.length = length
@@ -167,6 +225,11 @@ class Link(eqx.Module):
         self.com_normal = com_normal
         self.offset = float(offset)
         self.control_range = control_range
+        self.parent = parent
+        self.attach = attach
+        self.stiffness = stiffness
+        self.springref = springref
+        self.sense = int(sense)
 
     def __check_init__(self):
         if not isinstance(self.joint, str) or self.joint not in JOINTS:
@@ -180,6 +243,9 @@ class Link(eqx.Module):
         _check_scalar("armature", self.armature, nonnegative=True)
         _check_scalar("gear", self.gear, positive=True, optional=True)
         _check_scalar("com_normal", self.com_normal)
+        _check_scalar("stiffness", self.stiffness, nonnegative=True)
+        _check_scalar("springref", self.springref)
+        _check_point("attach", self.attach)
 
 
 def _is_zero(x) -> bool:
@@ -188,21 +254,29 @@ def _is_zero(x) -> bool:
 
 
 class Chain(eqx.Module):
-    """An immutable planar serial chain of ``n`` links, ``m`` of them actuated.
+    """An immutable planar kinematic tree of ``n`` links, ``m`` of them actuated; a serial chain by default.
 
-    Physical parameters are array leaves of shape ``(n,)`` (``gear``: ``(m,)``; ``gravity``: ``()``), so
-    ``jax.grad``/``eqx.filter_grad`` with respect to masses, lengths, inertias, damping and
-    gravity works. Structure is static, and construction computes nothing (see the module
-    docstring).
+    Physical parameters are array leaves of shape ``(n,)`` (``gear``: ``(m,)``; ``gravity``: ``()``; ``attach``:
+    ``(k, 2)`` for the ``k`` links with an attach point of their own), so ``jax.grad``/``eqx.filter_grad`` with
+    respect to masses, lengths, inertias, damping, springs, attach points and gravity works. Structure is static,
+    and construction computes nothing (see the module docstring).
 
     Args:
-        links: a non-empty sequence of :class:`Link`.
+        links: a non-empty sequence of :class:`Link`, parents before their children.
         gravity: gravitational acceleration [m/s^2] along -z; finite.
+
+    Attributes:
+        parents: each link's parent, ``-1`` for the world (static).
+        attached: the links with an ``attach`` point of their own (the others sit at their parent's tip), in order;
+            ``attach[k]`` belongs to link ``attached[k]`` (static).
+        sprung: the links whose joint has a spring (``stiffness > 0``) (static).
+        senses: each joint's ``sense``, ``1`` or ``-1`` (static).
 
     Raises:
         TypeError, ValueError: naming the bad field, for a parameter of the wrong type, sign or
-            shape, a non-finite one, an unknown joint kind, or a joint that moves no mass, inertia
-            or armature at any configuration (a mass matrix singular everywhere).
+            shape, a non-finite one, an unknown joint kind, a parent that is not the world or a link listed
+            before its child, or a joint that moves no mass, inertia or armature at any configuration (a mass
+            matrix singular everywhere).
     """
 
     mass: Float[Array, " n"]
@@ -214,6 +288,9 @@ class Chain(eqx.Module):
     gear: Float[Array, " m"] | None
     gravity: Float[Array, ""] | None
     com_normal: Float[Array, " n"] | None
+    attach: Float[Array, "k 2"] | None
+    stiffness: Float[Array, " n"] | None
+    springref: Float[Array, " n"] | None
     joints: tuple[str, ...] = eqx.field(static=True)
     axes: tuple[float, ...] = eqx.field(static=True)
     offsets: tuple[float, ...] = eqx.field(static=True)
@@ -221,6 +298,10 @@ class Chain(eqx.Module):
     actuated: tuple[int, ...] = eqx.field(static=True)
     damped: tuple[int, ...] = eqx.field(static=True)
     armatured: tuple[int, ...] = eqx.field(static=True)
+    parents: tuple[int, ...] = eqx.field(static=True)
+    attached: tuple[int, ...] = eqx.field(static=True)
+    sprung: tuple[int, ...] = eqx.field(static=True)
+    senses: tuple[int, ...] = eqx.field(static=True)
 
     def __init__(self, links: Sequence[Link], gravity: Float[ArrayLike, ""] = 9.81):
         if isinstance(links, Link):
@@ -239,7 +320,8 @@ class Chain(eqx.Module):
                 raise ValueError(f"Chain.gravity must be a scalar, got shape {g.shape}")
             if not math.isfinite(float(g)):
                 raise ValueError(f"Chain.gravity must be finite, got {float(g)}")
-        _check_every_joint_moves_something(links)
+        parents = _parents(links)
+        _check_every_joint_moves_something(links, parents)
 
         dtype = jax.dtypes.canonicalize_dtype(float)
         self.mass = _stack([lk.mass for lk in links], dtype)
@@ -263,11 +345,21 @@ class Chain(eqx.Module):
         self.gravity = None if _is_zero(gravity) else _stack(gravity, dtype)
         ranges = tuple(links[i].control_range for i in self.actuated)
         self.control_ranges = ranges if any(r is not None for r in ranges) else None
+        self.parents = parents
+        self.attached = tuple(i for i, lk in enumerate(links) if lk.attach is not None)
+        self.attach = _stack_points([links[i].attach for i in self.attached], dtype) if self.attached else None
+        self.sprung = tuple(i for i, lk in enumerate(links) if not _is_zero(lk.stiffness))
+        self.stiffness = _stack([lk.stiffness for lk in links], dtype) if self.sprung else None
+        self.springref = _stack([lk.springref for lk in links], dtype) if self.sprung else None
+        self.senses = tuple(lk.sense for lk in links)
 
     def frame_offsets(self) -> tuple[float, ...]:
-        """Each link frame's angle at ``q = 0`` [rad], the sum of the offsets up to it: ``phi_i = offset_sum_i +``
-        (the revolute ``q_j``, ``j <= i``). Static."""
-        return tuple(itertools.accumulate(self.offsets))
+        """Each link frame's angle at ``q = 0`` [rad], the sum of the offsets on its path from the world:
+        ``phi_i = offset_sum_i +`` (the revolute ``q_j`` on that path). Static."""
+        out: list[float] = []
+        for i, off in enumerate(self.offsets):
+            out.append(off if self.parents[i] == WORLD else out[self.parents[i]] + off)
+        return tuple(out)
 
     @property
     def n(self) -> int:
@@ -279,11 +371,37 @@ class Chain(eqx.Module):
         """Number of actuated joints (controls)."""
         return len(self.actuated)
 
+    @property
+    def serial(self) -> bool:
+        """Whether the links form one serial chain from the world (each the parent of the next)."""
+        return self.parents == tuple(range(-1, self.n - 1))
+
+    def children(self, i: int) -> tuple[int, ...]:
+        """The links whose parent is link ``i`` (``-1``: the links of the world), in order. Static."""
+        return tuple(k for k, p in enumerate(self.parents) if p == i)
+
+    def path(self, i: int) -> tuple[int, ...]:
+        """The links from the world to link ``i``, ``i`` included, in order. Static."""
+        out = []
+        while i != WORLD:
+            out.append(i)
+            i = self.parents[i]
+        return tuple(reversed(out))
+
+    def segments(self) -> tuple[tuple[int, int], ...]:
+        """The tree as serial segments ``(start, stop)``: links ``start, ..., stop - 1``, each the only child of the
+        one before; a segment ends at a link with no child or several, or one whose child is not listed next. The
+        parent of a segment's first link is the world or the last link of an earlier segment. Static."""
+        starts = [i for i in range(self.n) if i == 0 or self.parents[i] != i - 1 or len(self.children(i - 1)) != 1]
+        return tuple(zip(starts, starts[1:] + [self.n]))
+
     def links(self) -> tuple[Link, ...]:
         """The chain as a tuple of :class:`Link` (for editing and re-building)."""
         out = []
         k = {j: i for i, j in enumerate(self.actuated)}
+        at = {j: i for i, j in enumerate(self.attached)}
         for i, joint in enumerate(self.joints):
+            sprung = self.stiffness is not None
             out.append(
                 Link(
                     joint,
@@ -298,9 +416,28 @@ class Chain(eqx.Module):
                     com_normal=0.0 if self.com_normal is None else self.com_normal[i],
                     offset=self.offsets[i],
                     control_range=None if (i not in k or self.control_ranges is None) else self.control_ranges[k[i]],
+                    parent=None if self.parents[i] == i - 1 else self.parents[i],
+                    attach=None if i not in at else self.attach[at[i]],
+                    stiffness=self.stiffness[i] if sprung else 0.0,
+                    springref=self.springref[i] if sprung else 0.0,
+                    sense=self.senses[i],
                 )
             )
         return tuple(out)
+
+
+def _parents(links: tuple[Link, ...]) -> tuple[int, ...]:
+    """Each link's parent index (-1: the world), checked to be the world or a link listed before it."""
+    out = []
+    for i, lk in enumerate(links):
+        p = i - 1 if lk.parent is None else lk.parent
+        if not WORLD <= p < i:
+            raise ValueError(
+                f"Chain.links[{i}].parent must be -1 (the world) or the index of a link listed before it (0..{i - 1}), "
+                f"got {p}: list every link after its parent (which also rules out cycles)"
+            )
+        out.append(p)
+    return tuple(out)
 
 
 def _value(x):
@@ -320,24 +457,48 @@ def _stack(values, dtype):
     return jax.device_put(np.asarray(values, dtype=dtype))
 
 
-def _on_axis(links: tuple[Link, ...], j: int, i: int, com) -> bool:
+def _stack_points(points, dtype):
+    """Points ``(x, z)`` as a JAX array ``(k, 2)`` of ``dtype``, like :func:`_stack` (NumPy when all are concrete)."""
+    if any(isinstance(v, jax.core.Tracer) or any(isinstance(c, jax.core.Tracer) for c in v)
+           for v in points if not isinstance(v, jax.core.Tracer)) or any(isinstance(v, jax.core.Tracer) for v in points):
+        return jnp.stack([jnp.stack([jnp.asarray(c, dtype=dtype) for c in v]) if not isinstance(v, jax.core.Tracer)
+                          else jnp.asarray(v, dtype=dtype) for v in points])
+    return jax.device_put(np.stack([np.asarray([np.asarray(c, dtype=dtype) for c in v], dtype=dtype) for v in points]))
+
+
+def _on_axis(links: tuple[Link, ...], parents: tuple[int, ...], j: int, i: int, com) -> bool:
     """Whether link ``i``'s centre of mass stays on revolute joint ``j``'s axis at every configuration: it sits on
-    its own joint (``com = 0``) and every joint from ``j`` to it is revolute and joined by links of zero length."""
+    its own joint (``com = 0``) and every joint on the path from ``j`` to it is revolute and sits on its parent's
+    joint (a parent of zero length, or an attach point at the parent's origin)."""
     if com is None or float(com) != 0.0:
         return False
-    for k in range(j, i):
-        if links[k + 1].joint != "revolute" or not _is_zero(links[k].length):
+    k = i
+    while k != j:
+        p = parents[k]
+        attach = links[k].attach
+        at_origin = _is_zero(links[p].length) if attach is None else all(_is_zero(c) for c in attach)
+        if links[k].joint != "revolute" or not at_origin:
             return False
+        k = p
     return True
 
 
-def _check_every_joint_moves_something(links: tuple[Link, ...]) -> None:
+def _subtree(parents: tuple[int, ...], j: int) -> list[int]:
+    """Link ``j`` and every link below it, in order."""
+    inside = {j}
+    for i in range(j + 1, len(parents)):
+        if parents[i] in inside:
+            inside.add(i)
+    return sorted(inside)
+
+
+def _check_every_joint_moves_something(links: tuple[Link, ...], parents: tuple[int, ...]) -> None:
     """Raise if a joint's diagonal entry of the mass matrix is zero at every configuration (then so is its
-    determinant). ``M_jj = sum_{i >= j} (m_i |dc_i/dq_j|^2 + I_i [joint j revolute]) + armature_j``: a prismatic
-    joint moves the mass of every link from it on (``|dc_i/dq_j| = 1``); a revolute one moves their inertia and every
-    mass off its axis. A sum of non-negative terms, so it vanishes identically exactly when each term does. A
-    parameter not known yet (traced) counts as non-zero. Checked on the parameters alone, without computing ``M``."""
-    n = len(links)
+    determinant). ``M_jj = sum_{i below j} (m_i |dc_i/dq_j|^2 + I_i [joint j revolute]) + armature_j`` (``i`` over
+    ``j``'s subtree, ``j`` included): a prismatic joint moves the mass of every link of its subtree
+    (``|dc_i/dq_j| = 1``); a revolute one moves their inertia and every mass off its axis. A sum of non-negative terms,
+    so it vanishes identically exactly when each term does. A parameter not known yet (traced) counts as non-zero.
+    Checked on the parameters alone, without computing ``M``."""
     mass = [_concrete(lk.mass) for lk in links]
     length = [_concrete(lk.length) for lk in links]
     com = [length[i] / 2 if lk.com is None and length[i] is not None else _concrete(lk.com) for i, lk in enumerate(links)]
@@ -356,16 +517,16 @@ def _check_every_joint_moves_something(links: tuple[Link, ...]) -> None:
     for j, joint in enumerate(links):
         if not _is_zero(joint.armature):
             continue
-        tail = range(j, n)
+        tail = _subtree(parents, j)
         if joint.joint == "prismatic":
             if all(zero(mass[i]) for i in tail):
                 raise ValueError(
-                    f"Chain has a singular mass matrix: prismatic joint {j} moves no mass (links {list(tail)} have zero "
-                    f"mass); give one of links {list(tail)} a mass > 0 or joint {j} an armature > 0"
+                    f"Chain has a singular mass matrix: prismatic joint {j} moves no mass (links {tail} have zero "
+                    f"mass); give one of links {tail} a mass > 0 or joint {j} an armature > 0"
                 )
             continue
         massless = [i for i in tail if zero(mass[i]) and zero(inertia[i])]
-        on_axis = [i for i in tail if zero(inertia[i]) and not zero(mass[i]) and _on_axis(links, j, i, com[i])]
+        on_axis = [i for i in tail if zero(inertia[i]) and not zero(mass[i]) and _on_axis(links, parents, j, i, com[i])]
         if len(massless) + len(on_axis) == len(tail):
             why = []
             if massless:
@@ -374,6 +535,6 @@ def _check_every_joint_moves_something(links: tuple[Link, ...]) -> None:
                 why.append(f"links {on_axis} have zero inertia and their centre of mass on joint {j}'s axis")
             raise ValueError(
                 f"Chain has a singular mass matrix: revolute joint {j} moves no mass, inertia or armature "
-                f"({'; '.join(why)}); give one of links {list(tail)} an inertia > 0 (or a mass off the joint's axis), "
+                f"({'; '.join(why)}); give one of links {tail} an inertia > 0 (or a mass off the joint's axis), "
                 f"or joint {j} an armature > 0"
             )

@@ -17,7 +17,7 @@ from jaxtyping import Array, ArrayLike, Float
 from lagrange import _scalar as s
 from lagrange._jet import Jet, sincos
 from lagrange._scalar import cos_sin
-from lagrange.chain import Chain
+from lagrange.chain import WORLD, Chain
 
 
 class Frames(NamedTuple):
@@ -25,8 +25,9 @@ class Frames(NamedTuple):
 
     ``origin[i]``: (x, z) of joint i; ``com[i]``: (x, z) of link i's centre of mass;
     ``tip``: (x, z) of the end of the last link; ``angle_rate[i]``: phi_i's time derivative
-    (``None`` when velocities were not asked for); ``revolute_before[i]``: the revolute joints
-    j <= i (the rows of phi_i's Jacobian, all ones).
+    (``None`` when velocities were not asked for); ``revolute_before[i]``: the revolute joints on the path
+    from the world to link i, i included (the rows of phi_i's Jacobian, each joint's ``sense``); ``tips[i]``: (x, z) of the end
+    of link i (``length`` along its direction from its joint), or ``None`` when not asked for.
     """
 
     origin: list
@@ -34,6 +35,7 @@ class Frames(NamedTuple):
     tip: tuple
     angle_rate: list
     revolute_before: list
+    tips: list
 
 
 def _vec_scale(v, c):
@@ -50,33 +52,37 @@ def _split(x, n: int):
     return [x[..., i] for i in range(n)]
 
 
-def frames(chain: Chain, q: Float[ArrayLike, "*batch n"], qd: Float[ArrayLike, "*batch n"] | None = None) -> Frames:
+def frames(chain: Chain, q: Float[ArrayLike, "*batch n"], qd: Float[ArrayLike, "*batch n"] | None = None, *,
+           tips: bool = False) -> Frames:
     """Jets of every joint origin and centre of mass, at joint coordinates ``q`` [rad or m] and velocities ``qd``
-    [rad/s or m/s] of shape ``(*batch, n)``; positions in m. ``qd=None`` drops all velocity terms."""
+    [rad/s or m/s] of shape ``(*batch, n)``; positions in m. ``qd=None`` drops all velocity terms; ``tips=True`` adds
+    the end of every link (``Frames.tips``; else ``None``)."""
     n = chain.n
     qs = _split(q, n)
     qds = _split(qd, n)
-    phi = Jet.const(0.0)
-    sin_phi, cos_phi = Jet.const(0.0), Jet.const(1.0)
-    p = (Jet.const(0.0), Jet.const(0.0))
-    length_prev = 0.0
     off = chain.frame_offsets()
-    off_prev = 0.0
     normal = chain.com_normal
+    attach = {i: k for k, i in enumerate(chain.attached)}
+    world = (Jet.const(0.0), Jet.const(0.0), Jet.const(1.0), (Jet.const(0.0), Jet.const(0.0)), 0.0, ())
+    state = []  # per link: phi (the sum of the revolute q's on its path), sin, cos, origin, angle rate, revolute joints
     origin, com, rates, rev = [], [], [], []
-    revolute: list[int] = []
-    rate = 0.0
     for i, joint in enumerate(chain.joints):
-        # phi is the sum of the revolute q's; link i's frame is at phi + off[i]
-        if i > 0:
-            p = _vec_add(p, _along(sin_phi, cos_phi, off_prev, length_prev, None))
+        parent = chain.parents[i]
+        phi, sin_phi, cos_phi, p, rate, revolute = world if parent == WORLD else state[parent]
+        off_prev = 0.0 if parent == WORLD else off[parent]
+        # link i's joint sits at its attach point on the parent (default: the parent's tip); frames at phi + off
+        if i in attach:
+            x, z = chain.attach[attach[i]][0], chain.attach[attach[i]][1]
+            p = _vec_add(p, _along(sin_phi, cos_phi, off_prev, s.neg(z), x))
+        elif parent != WORLD:
+            p = _vec_add(p, _along(sin_phi, cos_phi, off_prev, chain.length[parent], None))
         qi = Jet.coordinate(i, qs[i], qds[i])
         if joint == "revolute":
-            phi = phi + qi
-            revolute = revolute + [i]
-            rate = s.add(rate, qds[i])
+            phi = phi + qi if chain.senses[i] > 0 else phi - qi
+            revolute = revolute + (i,)
+            rate = s.add(rate, qds[i]) if chain.senses[i] > 0 else s.sub(rate, qds[i])
             sin_phi, cos_phi = sincos(phi)
-        else:  # prismatic: slide along e(phi_{i-1} + axis)
+        else:  # prismatic: slide along e(phi_parent + axis)
             a = chain.axes[i] + off_prev
             if a == 0.0:
                 ex, ez = cos_phi, sin_phi
@@ -85,13 +91,14 @@ def frames(chain: Chain, q: Float[ArrayLike, "*batch n"], qd: Float[ArrayLike, "
                 ex = cos_phi.scale(ca) - sin_phi.scale(sa)
                 ez = sin_phi.scale(ca) + cos_phi.scale(sa)
             p = _vec_add(p, (ex * qi, ez * qi))
+        state.append((phi, sin_phi, cos_phi, p, rate, revolute))
         origin.append(p)
         com.append(_vec_add(p, _along(sin_phi, cos_phi, off[i], chain.com[i], None if normal is None else normal[i])))
         rates.append(rate if qd is not None else None)
-        rev.append(tuple(revolute))
-        length_prev, off_prev = chain.length[i], off[i]
-    tip = _vec_add(p, _along(sin_phi, cos_phi, off_prev, length_prev, None))
-    return Frames(origin, com, tip, rates, rev)
+        rev.append(revolute)
+    ends = [_vec_add(origin[i], _along(state[i][1], state[i][2], off[i], chain.length[i], None))
+            for i in (range(n) if tips else [n - 1])]
+    return Frames(origin, com, ends[-1], rates, rev, ends if tips else None)
 
 
 def _along(sin_phi, cos_phi, off: float, c_d, c_e):
@@ -110,8 +117,8 @@ def _along(sin_phi, cos_phi, off: float, c_d, c_e):
 
 
 def positions(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch n+1 2"]:
-    """Joint origins and the tip [m] as (x, z) rows, shape ``(*batch, n + 1, 2)``, at joint coordinates ``q``
-    [rad or m] of shape ``(*batch, n)``; for plotting."""
+    """Joint origins and the last link's tip [m] as (x, z) rows, shape ``(*batch, n + 1, 2)``, at joint coordinates
+    ``q`` [rad or m] of shape ``(*batch, n)``; for plotting (a tree's other tips: :func:`tip_positions`)."""
     f = frames(chain, q)
     pts = f.origin + [f.tip]
     like = q[..., 0]
@@ -128,5 +135,17 @@ def com_positions(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array,
     like = q[..., 0]
     return jnp.stack(
         [jnp.stack([s.as_array(c[0].v, like), s.as_array(c[1].v, like)], axis=-1) for c in f.com],
+        axis=-2,
+    )
+
+
+def tip_positions(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch n 2"]:
+    """The end of every link (``length`` along its direction from its joint) [m] as (x, z) rows, shape
+    ``(*batch, n, 2)``, at joint coordinates ``q`` [rad or m] of shape ``(*batch, n)``; with :func:`positions`'
+    joint origins, what a drawing of a tree needs."""
+    f = frames(chain, q, tips=True)
+    like = q[..., 0]
+    return jnp.stack(
+        [jnp.stack([s.as_array(t[0].v, like), s.as_array(t[1].v, like)], axis=-1) for t in f.tips],
         axis=-2,
     )

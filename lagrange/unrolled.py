@@ -19,19 +19,22 @@ from lagrange import _scalar as s
 from lagrange import _unitvec
 from lagrange._linalg import solve_spd, to_array
 from lagrange.actuation import clamp_controls
-from lagrange.chain import Chain
+from lagrange.chain import WORLD, Chain
 from lagrange.kinematics import frames
 
 
 def _add_rotational(chain: Chain, M: list[list]) -> list[list]:
-    """Add ``sum_i I_i s_i^T s_i + diag(armature)`` (s_i: the revolute joints up to link i) to M."""
-    revolute: list[int] = []
+    """Add ``sum_i I_i s_i^T s_i + diag(armature)`` (s_i: the revolute joints on link i's path) to M."""
+    revolute: list[tuple[int, ...]] = []
     for i, joint in enumerate(chain.joints):
-        if joint == "revolute":
-            revolute.append(i)
-        for a, j in enumerate(revolute):
-            for k in revolute[: a + 1]:
-                M[j][k] = s.add(M[j][k], chain.inertia[i])
+        p = chain.parents[i]
+        path = () if p == WORLD else revolute[p]
+        path = path + (i,) if joint == "revolute" else path
+        revolute.append(path)
+        for a, j in enumerate(path):
+            for k in path[: a + 1]:  # d phi_i / d q_j = sense_j
+                term = chain.inertia[i]
+                M[j][k] = s.add(M[j][k], term if chain.senses[j] == chain.senses[k] else s.negated(term))
     for j in chain.armatured:
         M[j][j] = s.add(M[j][j], chain.armature[j])
     return M
@@ -47,6 +50,9 @@ def _terms(chain: Chain, q, qd, *, mass: bool, velocity: bool, gravity: bool):
     if f is not None and velocity and chain.damping is not None:
         for j in chain.damped:
             f[j] = s.add(f[j], s.mul(chain.damping[j], qd[..., j]))
+    if f is not None and velocity and chain.stiffness is not None:  # the joint springs, with the damping
+        for j in chain.sprung:
+            f[j] = s.add(f[j], s.mul(chain.stiffness[j], s.sub(q[..., j], chain.springref[j])))
     return M, f
 
 
@@ -61,7 +67,7 @@ def mass_matrix(chain: Chain, q):
 
 
 def bias_forces(chain: Chain, q, qd):
-    """``C(q, qd) qd + T(q) + D qd``, shape ``(*batch, n)``."""
+    """``C(q, qd) qd + T(q) + D qd + K (q - q_ref)``, shape ``(*batch, n)``."""
     _, f = _terms(chain, q, qd, mass=False, velocity=True, gravity=True)
     return _stack(f, q[..., 0])
 
@@ -116,4 +122,7 @@ def energy(chain: Chain, q, qd):
             pot = s.add(pot, s.mul(chain.mass[i] * chain.gravity, cz.v))
     for j in chain.armatured:
         kin = s.add(kin, s.mul(0.5 * chain.armature[j], s.mul(qd[..., j], qd[..., j])))
+    for j in chain.sprung:
+        stretch = s.sub(q[..., j], chain.springref[j])
+        pot = s.add(pot, s.mul(0.5 * chain.stiffness[j], s.mul(stretch, stretch)))
     return s.as_array(kin, like), s.as_array(pot, like)

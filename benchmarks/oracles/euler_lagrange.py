@@ -28,22 +28,27 @@ def _e(phi):
 
 
 def com_and_angles(chain: Chain, q):
-    """Centres of mass ``(n, 2)`` and absolute link angles ``(n,)`` by plain forward kinematics."""
-    p = jnp.zeros(2, q.dtype)
-    phi = jnp.zeros((), q.dtype)
-    coms, phis = [], []
+    """Centres of mass ``(n, 2)`` and absolute link angles ``(n,)`` by plain forward kinematics: each link's joint at
+    its attach point on its parent (``p_parent + x e - z d``, default the parent's tip ``l_parent d``)."""
+    origins, phis, coms = [], [], []
     normal = jnp.zeros(chain.n, q.dtype) if chain.com_normal is None else chain.com_normal
+    attach = dict(zip(chain.attached, [] if chain.attach is None else list(chain.attach)))
     for i, joint in enumerate(chain.joints):
-        if i > 0:
-            p = p + chain.length[i - 1] * _d(phi)
-        parent = phi
-        phi = phi + chain.offsets[i]
+        parent = chain.parents[i]
+        p = jnp.zeros(2, q.dtype) if parent < 0 else origins[parent]
+        base = jnp.zeros((), q.dtype) if parent < 0 else phis[parent]
+        if i in attach:
+            p = p + attach[i][0] * _e(base) - attach[i][1] * _d(base)
+        elif parent >= 0:
+            p = p + chain.length[parent] * _d(base)
+        phi = base + chain.offsets[i]
         if joint == "revolute":
-            phi = phi + q[i]
+            phi = phi + chain.senses[i] * q[i]
         else:
-            p = p + q[i] * _e(parent + chain.axes[i])
-        coms.append(p + chain.com[i] * _d(phi) + normal[i] * _e(phi))
+            p = p + q[i] * _e(base + chain.axes[i])
+        origins.append(p)
         phis.append(phi)
+        coms.append(p + chain.com[i] * _d(phi) + normal[i] * _e(phi))
     return jnp.stack(coms), jnp.stack(phis)
 
 
@@ -60,6 +65,8 @@ def energy(chain: Chain, q, qd):
         T = T + 0.5 * jnp.sum(chain.armature * qd**2)
     g = 0.0 if chain.gravity is None else chain.gravity
     V = jnp.sum(chain.mass * g * c[:, 1])
+    if chain.stiffness is not None:
+        V = V + 0.5 * jnp.sum(chain.stiffness * (q - chain.springref) ** 2)
     return T, V
 
 

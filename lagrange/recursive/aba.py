@@ -1,10 +1,12 @@
 """The articulated-body algorithm: forward dynamics in O(n).
 
-Inward, ``IA_i = I_i + X_{i+1}^T Ia_{i+1} X_{i+1}``, ``pA_i = v_i x* I_i v_i + X_{i+1}^T pa_{i+1}``, ``U_i = IA_i S_i``,
+Inward, ``IA_i = I_i + sum_c X_c^T Ia_c X_c``, ``pA_i = v_i x* I_i v_i + sum_c X_c^T pa_c`` (``c`` the children of
+``i``), ``U_i = IA_i S_i``,
 ``D_i = S_i . U_i + armature_i``, ``u_i = tau_i - S_i . pA_i``, ``Ia_i = IA_i - U_i U_i^T / D_i``,
 ``pa_i = pA_i + Ia_i c_i + U_i u_i / D_i``; outward, ``a'_i = X_i a_{i-1} + c_i``, ``qdd_i = (u_i - U_i . a'_i) / D_i``,
 ``a_i = a'_i + S_i qdd_i``. The two passes are scans over the links, each step's inputs and outputs separate arrays of
-the batch's shape. Armature and an implicit-damping term ``h damping_i`` add to ``D_i``, which is adding them to
+the batch's shape; on a tree they run segment by segment, a branch point summing its child segments' articulated
+inertias and bias forces (:class:`~lagrange.recursive.tree.Topology`). Armature and an implicit-damping term ``h damping_i`` add to ``D_i``, which is adding them to
 ``M_ii``.
 """
 
@@ -17,8 +19,8 @@ from lagrange import _scalar as s
 from lagrange.actuation import clamp_controls
 from lagrange.chain import Chain
 from lagrange.recursive.kinematics import LinkKinematics
-from lagrange.recursive.rnea import damping_force
-from lagrange.recursive.tree import arrays, links_last, param, prepare, scan, split_links
+from lagrange.recursive.rnea import passive_force
+from lagrange.recursive.tree import arrays, links_last, param, prepare, split_links
 
 
 def actuation(chain: Chain, u, batch, dtype):
@@ -47,8 +49,9 @@ def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, p
     nb = len(batch)
     k = LinkKinematics(chain, q, qd, nb)
     tau = actuation(chain, u, batch, dtype)
-    if chain.damping is not None:
-        tau = s.sub(0.0 if tau is None else tau, damping_force(chain, qd))
+    passive = passive_force(chain, q, qd)
+    if passive is not None:
+        tau = s.sub(0.0 if tau is None else tau, passive)
     extra = None
     if chain.armature is not None:
         extra = param(chain.armature, nb)
@@ -101,7 +104,7 @@ def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, p
             out["inv"] = inv
         return arrays((a, b2, c2, d, e, f, pt, px, pz), zero), arrays(out, zero)
 
-    _, ys = scan(inward, (zero,) * 9, xs, reverse=True)
+    _, ys = k.topology.scan_inward(inward, (zero,) * 9, xs)
     g = 0.0 if chain.gravity is None else chain.gravity
     ys |= {key: xs[key] for key in ("rx", "rz", "cx", "cz", "s0", "s1", "s2") if key in xs}
 
@@ -115,7 +118,7 @@ def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, p
         ax, az = s.add(ax, s.mul(y["s1"], qdd)), s.add(az, s.mul(y["s2"], qdd))
         return arrays((al, ax, az), zero), qdd
 
-    _, qdd = scan(outward, (zero, zero, zero + g), ys)
+    _, qdd = k.topology.scan_outward(outward, (zero, zero, zero + g), ys)
     if not pivots:
         return links_last(qdd)
     inv = ys["inv"]  # 1 / D_i, (n, *batch)

@@ -6,7 +6,7 @@ import jax.numpy as jnp
 
 from lagrange.chain import Chain
 from lagrange.recursive.kinematics import LinkKinematics
-from lagrange.recursive.tree import cumsum, param, prepare
+from lagrange.recursive.tree import param, prepare
 
 
 def energy(chain: Chain, q, qd):
@@ -21,6 +21,9 @@ def energy(chain: Chain, q, qd):
     if chain.gravity is None:
         pot = jnp.zeros_like(kin)
     else:
-        pz = cumsum(k.rz)  # height of p_i; the centre of mass is h / m above it
+        pz = k.topology.path_sum(k.rz)  # height of p_i; the centre of mass is h / m above it
         pot = chain.gravity * jnp.sum(jnp.broadcast_to(k.m * pz + k.hz, q.shape), axis=0)
+    if chain.stiffness is not None:  # the joint springs' 1/2 K (q - q_ref)^2
+        stretch = q - param(chain.springref, len(batch))
+        pot = pot + 0.5 * jnp.sum(param(chain.stiffness, len(batch)) * stretch * stretch, axis=0)
     return kin, pot

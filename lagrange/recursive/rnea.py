@@ -1,8 +1,10 @@
 """The recursive Newton-Euler algorithm: bias, gravity and inverse dynamics forces in O(n).
 
-``a_i = X_i a_{i-1} + S_i qdd_i + c_i``, ``f_i = I_i a_i + v_i x* I_i v_i``, ``tau_i = S_i . sum_{k >= i} X_{i<-k}^T
-f_k``, with gravity as the base acceleration ``a_0 = (0, 0, g)``; the accelerations are cumulative sums outward and the
-forces cumulative sums inward, on the per-link arrays of :class:`~lagrange.recursive.kinematics.LinkKinematics`.
+``a_i = X_i a_{i-1} + S_i qdd_i + c_i``, ``f_i = I_i a_i + v_i x* I_i v_i``, ``tau_i = S_i . sum_{k in i's subtree}
+X_{i<-k}^T f_k``, with gravity as the base acceleration ``a_0 = (0, 0, g)``; the accelerations are sums along each link's
+path from the world and the forces sums over each link's subtree (cumulative sums on a serial chain,
+:class:`~lagrange.recursive.tree.Topology`), on the per-link arrays of
+:class:`~lagrange.recursive.kinematics.LinkKinematics`.
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ import jax.numpy as jnp
 from lagrange import _scalar as s
 from lagrange.chain import Chain
 from lagrange.recursive.kinematics import LinkKinematics
-from lagrange.recursive.tree import cumsum, links_first, links_last, next_link, param, prepare, prev, rcumsum
+from lagrange.recursive.tree import links_first, links_last, param, prepare
 
 
 def damping_force(chain: Chain, qd):
@@ -20,30 +22,48 @@ def damping_force(chain: Chain, qd):
     return None if chain.damping is None else param(chain.damping, qd.ndim - 1) * qd
 
 
+def spring_force(chain: Chain, q):
+    """``K (q - q_ref)`` (links first), or ``None`` for a chain without joint springs."""
+    if chain.stiffness is None:
+        return None
+    nb = q.ndim - 1
+    return param(chain.stiffness, nb) * (q - param(chain.springref, nb))
+
+
+def passive_force(chain: Chain, q, qd):
+    """``D qd + K (q - q_ref)`` (links first): the joints' dampers and springs, or ``None`` without either."""
+    out = damping_force(chain, qd)
+    springs = spring_force(chain, q)
+    if springs is not None:
+        out = springs if out is None else out + springs
+    return out
+
+
 def _rnea(chain: Chain, k: LinkKinematics, qdd, gravity: bool):
-    """``S_i . (sum_{k >= i} X^T f_k)`` for ``f = I a + v x* I v``, shape (n, *batch)."""
+    """``S_i . (sum_{k in i's subtree} X^T f_k)`` for ``f = I a + v x* I v``, shape (n, *batch)."""
     g = chain.gravity if (gravity and chain.gravity is not None) else 0.0
+    tree = k.topology
     S = k.S
     cx = 0.0 if k.cx is None else k.cx
     cz = 0.0 if k.cz is None else k.cz
-    if qdd is None:  # a_i = a_0 + sum_{k <= i} c_k (c has no angular part)
+    if qdd is None:  # a_i = a_0 + sum_{k on i's path} c_k (c has no angular part)
         al = 0.0
-        ax = 0.0 if s.is_const(cx) else cumsum(cx)
-        az = 0.0 if s.is_const(cz) else cumsum(cz)
+        ax = 0.0 if s.is_const(cx) else tree.path_sum(cx)
+        az = 0.0 if s.is_const(cz) else tree.path_sum(cz)
     else:
-        al = cumsum(s.mul(S[0], qdd))
-        ap = prev(al, 0.0)
-        ax = cumsum(s.add(s.add(s.mul(s.neg(ap), k.rz), s.mul(S[1], qdd)), cx))
-        az = cumsum(s.add(s.add(s.mul(ap, k.rx), s.mul(S[2], qdd)), cz))
+        al = tree.path_sum(s.mul(S[0], qdd))
+        ap = tree.parent_value(al, 0.0)
+        ax = tree.path_sum(s.add(s.add(s.mul(s.neg(ap), k.rz), s.mul(S[1], qdd)), cx))
+        az = tree.path_sum(s.add(s.add(s.mul(ap, k.rx), s.mul(S[2], qdd)), cz))
     az = s.add(az, g)
     t, Fx, Fz = k.momentum(al, ax, az)
     if k.pA is not None:
         t, Fx, Fz = t + k.pA[0], Fx + k.pA[1], Fz + k.pA[2]
     like = k.sin
     t, Fx, Fz = (jnp.broadcast_to(x, like.shape) for x in (t, Fx, Fz))
-    Fx, Fz = rcumsum(Fx), rcumsum(Fz)
-    # moments about p_i: t_i + perp(r_{i+1}) . Ftot_{i+1} + (the same for the links beyond)
-    t = rcumsum(t - next_link(k.rz) * next_link(Fx) + next_link(k.rx) * next_link(Fz))
+    Fx, Fz = tree.subtree_sum(Fx), tree.subtree_sum(Fz)
+    # moments about p_i: t_i + perp(r_c) . Ftot_c for each child c + (the same for the links below)
+    t = tree.subtree_sum(t - tree.children_sum(k.rz * Fx) + tree.children_sum(k.rx * Fz))
     return s.add(s.add(s.mul(S[0], t), s.mul(S[1], Fx)), s.mul(S[2], Fz))
 
 
@@ -52,8 +72,9 @@ def bias_forces(chain: Chain, q, qd):
     batch, _, q, qd = prepare(chain, q, qd)
     k = LinkKinematics(chain, q, qd, len(batch))
     f = _rnea(chain, k, None, gravity=True)
-    if chain.damping is not None:
-        f = f + damping_force(chain, qd)
+    passive = passive_force(chain, q, qd)
+    if passive is not None:
+        f = f + passive
     return links_last(f)
 
 
@@ -71,8 +92,9 @@ def inverse_dynamics(chain: Chain, q, qd, qdd):
     qdd = links_first(qdd.astype(dtype), batch)
     k = LinkKinematics(chain, q, qd, len(batch))
     f = _rnea(chain, k, qdd, gravity=True)
-    if chain.damping is not None:
-        f = f + damping_force(chain, qd)
+    passive = passive_force(chain, q, qd)
+    if passive is not None:
+        f = f + passive
     if chain.armature is not None:
         f = f + param(chain.armature, len(batch)) * qdd
     return links_last(f)

@@ -115,3 +115,156 @@ def momentum(J, hx, hz, m, w, vx, vz):
         s.sub(s.mul(m, vx), s.mul(hz, w)),
         s.add(s.mul(hx, w), s.mul(m, vz)),
     )
+
+
+# ------------------------------------------------------------------ a tree's links
+
+
+class Topology:
+    """The sums and shifts of per-link arrays ``(n, *batch)`` along a chain's tree, for the recursive algorithms.
+
+    On a serial chain they are the cumulative sums and one-link shifts above, the program the chain has always had;
+    on a tree the sums over paths, subtrees and children are products with constant 0/1 matrices (``n x n``, the
+    tree's path matrix ``P[i, k] = 1`` for ``k`` on the path from the world to ``i``, and its child matrix
+    ``C[i, c] = 1`` for the children ``c`` of ``i``), and the scans are still one scan each over all the links, a
+    link's carry coming from its parent through a few slots (:func:`_outward_plan`, :func:`_inward_plan`), so a
+    branched tree costs about what a chain of as many links costs.
+    """
+
+    def __init__(self, chain: Chain):
+        self.chain = chain
+        self.serial = chain.serial
+        n = chain.n
+        self.parents = np.asarray(chain.parents)
+        self.path = np.zeros((n, n), bool)
+        for i in range(n):
+            self.path[i, list(chain.path(i))] = True
+        self.child = np.zeros((n, n), bool)
+        for c, p in enumerate(chain.parents):
+            if p >= 0:
+                self.child[p, c] = True
+
+    def _dot(self, matrix, x):
+        return jnp.tensordot(jnp.asarray(matrix, x.dtype), x, axes=1)
+
+    def path_sum(self, x):
+        """``sum_{k on the path from the world to i} x_k`` (a serial chain: :func:`cumsum`)."""
+        if self.serial or s.is_const(x):
+            return cumsum(x)
+        return self._dot(self.path, x)
+
+    def subtree_sum(self, x):
+        """``sum_{k in i's subtree, i included} x_k`` (a serial chain: :func:`rcumsum`)."""
+        if self.serial:
+            return rcumsum(x)
+        return self._dot(self.path.T, x)
+
+    def children_sum(self, x):
+        """``sum_{c a child of i} x_c`` (a serial chain: :func:`next_link`)."""
+        if self.serial:
+            return next_link(x)
+        return self._dot(self.child, x)
+
+    def parent_value(self, x, world):
+        """``x`` of each link's parent, ``world`` for a link of the world (a serial chain: :func:`prev`)."""
+        if self.serial or s.is_const(x):
+            return prev(x, world)
+        shape = (-1,) + (1,) * (x.ndim - 1)
+        of_world = jnp.asarray(self.parents < 0).reshape(shape)
+        return jnp.where(of_world, jnp.asarray(world, x.dtype), x[np.maximum(self.parents, 0)])
+
+    def scan_outward(self, body, init, xs):
+        """``(final carry, ys)``: ``body`` scanned over the links from the world outward, ``ys`` in link order.
+
+        A serial chain is one :func:`scan`. On a tree it is one scan too: each link starts from its parent's carry,
+        which is the previous link's, the world's (``init``), or one kept in a slot since the parent was
+        scanned (:func:`_outward_plan`); the selection is a few ``select``s per step.
+        """
+        if self.serial:
+            return scan(body, init, xs)
+        source, save, slots = _outward_plan(self.chain.parents)
+
+        def step(carry, x):
+            current, kept = carry
+            src, dst = x.pop("_source"), x.pop("_save")
+            start = tuple(jax.lax.select_n(src, c, w, *k) for c, w, *k in zip(current, init, *kept))
+            new, y = body(start, x)
+            kept = tuple(tuple(jnp.where(dst == k, a, b) for a, b in zip(new, slot)) for k, slot in enumerate(kept))
+            return (new, kept), y
+
+        flags = {"_source": jnp.asarray(source, jnp.int32), "_save": jnp.asarray(save, jnp.int32)}
+        (carry, _), ys = scan(step, (init, (init,) * slots), xs | flags)
+        return carry, ys
+
+    def scan_inward(self, body, init, xs):
+        """``(final carry, ys)``: ``body`` scanned over the links from the leaves inward, ``ys`` in link order; each
+        link's carry in is the sum of its children's carries out (``init``, zeros, where it has none).
+
+        A serial chain is one reversed :func:`scan`. On a tree it is one too: a child that is not the next link
+        deposits its carry into a slot that its parent collects (:func:`_inward_plan`).
+        """
+        if self.serial:
+            return scan(body, init, xs, reverse=True)
+        take, collect, deposit, slots = _inward_plan(self.chain.parents)
+
+        def step(carry, x):
+            current, kept = carry
+            tk, col, dep = x.pop("_take"), x.pop("_collect"), x.pop("_deposit")
+            into = tuple(jnp.where(tk, c, z) for c, z in zip(current, init))
+            for k, slot in enumerate(kept):
+                into = tuple(a + jnp.where(col == k, b, z) for a, b, z in zip(into, slot, init))
+            kept = tuple(tuple(jnp.where(col == k, z, b) for b, z in zip(slot, init)) for k, slot in enumerate(kept))
+            new, y = body(into, x)
+            kept = tuple(tuple(b + jnp.where(dep == k, a, z) for a, b, z in zip(new, slot, init))
+                         for k, slot in enumerate(kept))
+            return (new, kept), y
+
+        flags = {"_take": jnp.asarray(take), "_collect": jnp.asarray(collect, jnp.int32),
+                 "_deposit": jnp.asarray(deposit, jnp.int32)}
+        (carry, _), ys = scan(step, (init, (init,) * slots), xs | flags, reverse=True)
+        return carry, ys
+
+
+def _intervals_to_slots(intervals: dict[int, tuple[int, int]]) -> tuple[dict[int, int], int]:
+    """Slots for values alive over ``[first, last]`` steps (inclusive), two never sharing a slot while both live."""
+    slot_of, free_at = {}, []
+    for key, (first, last) in sorted(intervals.items(), key=lambda kv: kv[1]):
+        for k, end in enumerate(free_at):
+            if end < first:
+                slot_of[key], free_at[k] = k, last
+                break
+        else:
+            slot_of[key] = len(free_at)
+            free_at.append(last)
+    return slot_of, len(free_at)
+
+
+def _outward_plan(parents: tuple[int, ...]):
+    """Per link: where its parent's carry comes from (0: the previous link's, 1: the world's, ``2 + k``: slot ``k``)
+    and the slot its own carry is kept in for a later child (-1: none); and the number of slots."""
+    n = len(parents)
+    later = {p: max(c for c in range(n) if parents[c] == p and c != p + 1)
+             for p in set(parents) if p >= 0 and any(parents[c] == p and c != p + 1 for c in range(n))}
+    slot_of, slots = _intervals_to_slots({p: (p + 1, last) for p, last in later.items()})
+    source = [0 if p == i - 1 and p >= 0 else 1 if p < 0 else 2 + slot_of[p] for i, p in enumerate(parents)]
+    save = [slot_of.get(i, -1) for i in range(n)]
+    return source, save, slots
+
+
+def _inward_plan(parents: tuple[int, ...]):
+    """Per link, scanned from the last to the first: whether the carry of the link after it flows in (it is its
+    child), the slot its other children's carries were deposited in (-1: none), and the slot its own carry is
+    deposited in for its parent (-1: none: it flows on to the link before it, its parent, or the world takes it);
+    and the number of slots. Steps count in scanning order (link ``n - 1`` first)."""
+    n = len(parents)
+    step = lambda i: n - 1 - i  # noqa: E731
+    deposits = {}
+    for c, p in enumerate(parents):
+        if p >= 0 and p != c - 1:
+            first, last = deposits.get(p, (step(c), step(p)))
+            deposits[p] = (min(first, step(c)), last)
+    slot_of, slots = _intervals_to_slots(deposits)
+    take = [i + 1 < n and parents[i + 1] == i for i in range(n)]
+    collect = [slot_of.get(i, -1) for i in range(n)]
+    deposit = [slot_of[p] if p >= 0 and p != c - 1 else -1 for c, p in enumerate(parents)]
+    return take, collect, deposit, slots

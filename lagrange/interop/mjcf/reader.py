@@ -11,11 +11,14 @@ import math
 
 import numpy as np
 
-from lagrange.chain import Chain, Link
+from lagrange.chain import WORLD, Chain, Link
 from lagrange.interop.mjcf.runtime import compile_model, import_mujoco
 
 LIMITS = ("raise", "ignore")
 """What :func:`from_mjcf` does with a limited joint: refuse the model, or load it without the limit."""
+
+CONTACTS = ("raise", "ignore")
+"""What :func:`from_mjcf` does with geoms that can touch: refuse the model, or load it without contact."""
 
 _TOL = 1e-9  # a geometric tolerance [m or rad]: parallel axes, in-plane directions, zero lengths
 
@@ -25,7 +28,7 @@ def _name(mujoco, model, kind, i) -> str:
     return f"{kind} {name!r}" if name else f"{kind} #{i}"
 
 
-def _refuse(mujoco, model, limits: str) -> None:
+def _refuse(mujoco, model, limits: str, contact: str) -> None:
     """Raise for whatever a planar chain cannot reproduce exactly, naming the feature, the element and the way out."""
     off = model.opt.disableflags
     bit = mujoco.mjtDisableBit
@@ -39,11 +42,6 @@ def _refuse(mujoco, model, limits: str) -> None:
             raise NotImplementedError(
                 f"from_mjcf: {nm('joint', j)} is a {kind.name[6:].lower()} joint; a planar chain has hinges and slides "
                 "only (model the motion with hinges and slides in one plane)"
-            )
-        if model.jnt_stiffness[j] != 0 and not off & bit.mjDSBL_SPRING:
-            raise NotImplementedError(
-                f"from_mjcf: {nm('joint', j)} has stiffness {model.jnt_stiffness[j]} (a joint spring); the chain has no "
-                "springs: set stiffness=\"0\" or disable springs (<flag spring=\"disable\"/>)"
             )
         if model.jnt_limited[j] and constraints and not off & bit.mjDSBL_LIMIT and limits == "raise":
             raise ValueError(
@@ -105,25 +103,43 @@ def _refuse(mujoco, model, limits: str) -> None:
                 f"{nm('joint', order[a - 1])}: with u = ctrl a chain's actuators are declared in joint order; reorder "
                 "the <actuator> elements"
             )
-    _refuse_contacts(mujoco, model, nm)
+    if contact == "raise":
+        _refuse_contacts(mujoco, model, nm)
 
 
 def _refuse_contacts(mujoco, model, nm) -> None:
     """Refuse a model in which a contact can occur: one explicit ``<pair>``, or two geoms whose contype/conaffinity
-    bits match and that MuJoCo's body filters do not exclude (the same rules as its collision driver)."""
+    bits match and that MuJoCo's body filters do not exclude (the same rules as its collision driver); the message
+    names every pair that can touch (the first few) and the ways out."""
     off = model.opt.disableflags
     bit = mujoco.mjtDisableBit
     if off & bit.mjDSBL_CONSTRAINT or off & bit.mjDSBL_CONTACT:
         return
-    way_out = ("disable contacts (<option><flag contact=\"disable\"/></option>) or set contype=\"0\" conaffinity=\"0\" "
-               "on the geoms; the chain has no contacts")
+    way_out = ("from_mjcf(..., contact=\"ignore\") loads it without contact (exact while nothing touches); or disable "
+               "contacts in the model (<option><flag contact=\"disable\"/></option>) or set contype=\"0\" "
+               "conaffinity=\"0\" on the geoms")
     if model.npair:
-        raise NotImplementedError(f"from_mjcf: the model has {model.npair} explicit contact pair(s); {way_out}")
+        raise NotImplementedError(f"from_mjcf: the model has {model.npair} explicit contact pair(s) and the chain has "
+                                  f"no contact; {way_out}")
+    pairs = contact_pairs(mujoco, model)
+    if pairs:
+        shown = ", ".join(f"{nm('geom', g1)} and {nm('geom', g2)}" for g1, g2 in pairs[:4])
+        more = f" and {len(pairs) - 4} more pair(s)" if len(pairs) > 4 else ""
+        raise NotImplementedError(f"from_mjcf: geoms can touch ({shown}{more}) and the chain has no contact; "
+                                  f"{way_out}")
+
+
+def contact_pairs(mujoco, model) -> list[tuple[int, int]]:
+    """Every pair of geoms ``(g1, g2)``, ``g1 < g2``, that MuJoCo's collision driver would test: contype/conaffinity
+    bits that match, not on one rigid body, not parent and child (unless ``filterparent`` is disabled), not excluded."""
+    off = model.opt.disableflags
+    bit = mujoco.mjtDisableBit
     excluded = {(int(model.exclude_signature[k] >> 16), int(model.exclude_signature[k] & 0xFFFF))
                 for k in range(model.nexclude)}
     weld = model.body_weldid
     parent_weld = weld[model.body_parentid]
     filter_parent = not off & bit.mjDSBL_FILTERPARENT
+    out = []
     for g1 in range(model.ngeom):
         for g2 in range(g1 + 1, model.ngeom):
             if not (model.geom_contype[g1] & model.geom_conaffinity[g2] or model.geom_contype[g2] & model.geom_conaffinity[g1]):
@@ -136,12 +152,14 @@ def _refuse_contacts(mujoco, model, nm) -> None:
                 continue
             if (min(b1, b2), max(b1, b2)) in excluded or (max(b1, b2), min(b1, b2)) in excluded:
                 continue
-            raise NotImplementedError(f"from_mjcf: {nm('geom', g1)} and {nm('geom', g2)} can collide; {way_out}")
+            out.append((g1, g2))
+    return out
 
 
 def _plane(mujoco, model, data):
-    """The chain's plane as world unit vectors ``(x, y, z)``, right-handed, with every hinge turning about ``-y``
-    (so that ``q = qpos``) and gravity's in-plane part along ``-z``; and that part's magnitude."""
+    """The chain's plane as world unit vectors ``(x, y, z)``, right-handed, with the first hinge turning about ``-y``
+    (so that ``q = qpos``; a hinge about ``+y`` is a joint of ``sense=-1``) and gravity's in-plane part along ``-z``;
+    and that part's magnitude."""
     nm = lambda kind, i: _name(mujoco, model, kind, i)  # noqa: E731
     hinges = [j for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
     slides = [j for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE]
@@ -154,12 +172,6 @@ def _plane(mujoco, model, data):
                 raise NotImplementedError(
                     f"from_mjcf: {nm('joint', j)}'s axis {axes[j].round(6).tolist()} is not parallel to "
                     f"{nm('joint', hinges[0])}'s {n.round(6).tolist()}: the chain leaves the plane"
-                )
-            if axes[j] @ n < 0:
-                raise NotImplementedError(
-                    f"from_mjcf: {nm('joint', j)} turns about the opposite axis to {nm('joint', hinges[0])}; with "
-                    "q = qpos a chain's hinges share one sense: flip the joint's axis in the model (and negate its "
-                    "coordinate)"
                 )
     else:
         plane = [axes[j] for j in slides]
@@ -201,15 +213,15 @@ def _wrap(a: float) -> float:
     return math.pi if a == -math.pi else a
 
 
-def from_mjcf(source, *, limits: str = "raise") -> Chain:
-    """A planar serial chain read from MJCF, with ``q`` equal to MuJoCo's ``qpos``.
+def from_mjcf(source, *, limits: str = "raise", contact: str = "raise") -> Chain:
+    """A planar kinematic tree read from MJCF, with ``q`` equal to MuJoCo's ``qpos``.
 
     The model is compiled by MuJoCo itself (inertias from geoms, defaults classes, ``fromto``, degrees,
     includes), so this reads the compiled ``mujoco.MjModel`` at ``qpos = 0``. The contract: ``q`` is ``qpos``
     (same order, sign and zero), ``qd`` is ``qvel``, ``u`` is ``ctrl`` (actuator order, clamped into
     ``ctrlrange`` where the actuator is ``ctrllimited``); ``mass_matrix``, ``bias_forces`` and
     ``forward_dynamics`` then equal ``mj_fullM``, ``qfrc_bias - qfrc_passive`` and ``qacc``, and
-    :func:`solver_of` names the integrator that reproduces ``mj_step``.
+    :func:`~lagrange.interop.mjcf.solver_of` names the integrator that reproduces ``mj_step``.
 
     How a model maps onto a chain:
 
@@ -217,54 +229,47 @@ def from_mjcf(source, *, limits: str = "raise") -> Chain:
       against gravity's in-plane part and :attr:`Chain.gravity` that part's magnitude (gravity along the
       normal does no work on a planar chain). Positions (:func:`lagrange.positions`) are in this plane,
       relative to the first joint's anchor at ``qpos = 0``.
-    - One link per joint, in ``qpos`` order. A body with several joints becomes massless links for all
-      but its last joint; bodies without a joint are merged into the body they are welded to (mass,
-      centre of mass, and the moment of inertia about the plane's normal, by the parallel-axis theorem).
-    - Each link's frame points from its joint's anchor to the next joint's (frame offsets carry the
-      angles between them at ``qpos = 0``, a hinge's ``ref`` included); a slide's ``ref`` shifts where it
-      sits at ``qpos = 0``. Joint ``damping`` and ``armature`` are the joint's own; each motor's
+    - One link per joint, in ``qpos`` order. A body with several joints (a planar floating base's ``rootx``,
+      ``rootz``, ``rooty``) becomes massless links for all but its last joint; bodies without a joint are merged
+      into the body they are welded to (mass, centre of mass, and the moment of inertia about the plane's normal,
+      by the parallel-axis theorem). A link's parent is the link of the joint before it in its body, else the
+      last joint of the jointed body it hangs from, else the world: branches (the cheetah's and the walker's legs)
+      and second trees (the reacher's target) keep MuJoCo's structure.
+    - A hinge turning about the opposite axis to the first hinge is a joint of ``sense=-1``
+      (``phi = phi_parent - q``), so that still ``q = qpos``.
+    - Each link's frame points from its joint's anchor to its first child's (frame offsets carry the
+      angles between them at ``qpos = 0``, a hinge's ``ref`` included); its other children sit at ``attach``
+      points, and a link of the world at its anchor. A slide's ``ref`` shifts where it sits at ``qpos = 0``.
+      Joint ``damping``, ``armature``, ``stiffness`` and ``springref`` are the joint's own; each motor's
       ``gear * gain`` is the link's gear.
 
     Args:
         source: a path to an MJCF file, an MJCF string, or a compiled ``mujoco.MjModel``.
         limits: ``"raise"`` (refuse a model with a limited joint) or ``"ignore"`` (load it without the
             limits: exact while every joint stays inside its range).
+        contact: ``"raise"`` (refuse a model in which two geoms can touch) or ``"ignore"`` (load it without
+            contact: exact while nothing touches, e.g. a walker in the air).
 
     Returns:
         The :class:`~lagrange.chain.Chain` (float64 where JAX's x64 is enabled).
 
     Raises:
         ImportError: without MuJoCo (``pip install -e ".[mjcf]"``).
-        ValueError: for a limited joint with ``limits="raise"``, a bad ``limits``, a model without joints.
-        NotImplementedError: naming the element, for what a planar chain cannot reproduce: ball or free
-            joints, hinges that are not parallel or turn in opposite senses, slides out of the plane,
-            branches (a second chain or a tree), contacts that can occur, joint springs, friction loss,
-            tendons, equality constraints, gravity compensation, fluid forces, actuators other than motors
-            with a positive gear, force limits, two motors on one joint.
+        ValueError: for a limited joint with ``limits="raise"``, a bad ``limits`` or ``contact``, a model
+            without joints.
+        NotImplementedError: naming the element, for what a planar tree cannot reproduce: ball or free
+            joints, hinges that are not parallel, slides out of the plane,
+            contacts that can occur (with ``contact="raise"``), friction loss, tendons, equality constraints,
+            gravity compensation, fluid forces, actuators other than motors with a positive gear, force limits,
+            two motors on one joint.
     """
     if limits not in LIMITS:
         raise ValueError(f"from_mjcf: limits must be one of {LIMITS}, got {limits!r}")
+    if contact not in CONTACTS:
+        raise ValueError(f"from_mjcf: contact must be one of {CONTACTS}, got {contact!r}")
     mujoco = import_mujoco()
     model = compile_model(source)
-    _refuse(mujoco, model, limits)
-    nm = lambda kind, i: _name(mujoco, model, kind, i)  # noqa: E731
-
-    # the serial structure: each joint's body, and the jointed body each body hangs from
-    weld, parent = model.body_weldid, model.body_parentid
-    body = [int(model.jnt_bodyid[j]) for j in range(model.njnt)]
-    for j in range(model.njnt):
-        if j > 0 and body[j] == body[j - 1]:
-            continue
-        hangs_from = int(weld[parent[body[j]]])
-        expected = 0 if j == 0 else body[j - 1]
-        if hangs_from != expected:
-            where = "the world" if hangs_from == 0 else nm("body", hangs_from)
-            after = f"{nm('body', expected)}, which carries the joint before it ({nm('joint', j - 1)})" if j else "the world"
-            raise NotImplementedError(
-                f"from_mjcf: {nm('body', body[j])} ({nm('joint', j)}) hangs from {where}, not from {after}: the model "
-                "is a tree or has a second chain, and a Chain is one serial chain; remove the branch (or load each "
-                "branch as a model of its own)"
-            )
+    _refuse(mujoco, model, limits, contact)
 
     data = mujoco.MjData(model)
     data.qpos[:] = 0.0
@@ -272,6 +277,21 @@ def from_mjcf(source, *, limits: str = "raise") -> Chain:
     (X, Y, Z), G = _plane(mujoco, model, data)
     origin = np.array(data.xanchor[0])
     to2 = lambda v: np.array([v @ X, v @ Z])  # noqa: E731  world vector -> plane (x, z)
+
+    # the tree: each joint's body; a joint's parent is the joint before it in its body, else the last joint of the
+    # jointed body its body hangs from (MuJoCo lists bodies, and so joints, parents first)
+    weld, parent_body = model.body_weldid, model.body_parentid
+    n = model.njnt
+    body = [int(model.jnt_bodyid[j]) for j in range(n)]
+    last_joint = {b: max(j for j in range(n) if body[j] == b) for b in set(body)}
+    parents = []
+    for j in range(n):
+        if j > 0 and body[j] == body[j - 1]:
+            parents.append(j - 1)
+        else:
+            hangs_from = int(weld[parent_body[body[j]]])
+            parents.append(WORLD if hangs_from == 0 else last_joint[hangs_from])
+    children = {j: [c for c in range(n) if parents[c] == j] for j in range(n)}
 
     # each jointed body's rigid group (itself and the bodies welded to it): mass, centre of mass, planar moment
     groups = {}
@@ -287,47 +307,62 @@ def from_mjcf(source, *, limits: str = "raise") -> Chain:
             inertia += float(model.body_mass[k] * (r @ r))
         groups[b] = (m, to2(c - origin), inertia)
 
-    n = model.njnt
     anchor = [to2(np.array(data.xanchor[j]) - origin) for j in range(n)]
     last_of_body = [j == n - 1 or body[j + 1] != body[j] for j in range(n)]
     actuator = {int(model.actuator_trnid[a, 0]): a for a in range(model.nu)}
     clamp = not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL
     damper = not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_DAMPER
-    links, theta_prev = [], 0.0
+    spring = not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_SPRING
+    links, theta = [], []
     for j in range(n):
+        p = parents[j]
+        theta_parent = 0.0 if p == WORLD else theta[p]
         m, c, inertia = groups[body[j]] if last_of_body[j] else (0.0, anchor[j], 0.0)
-        tip = anchor[j + 1] - anchor[j] if j + 1 < n else np.zeros(2)
+        first = children[j][0] if children[j] else None
+        tip = anchor[first] - anchor[j] if first is not None else np.zeros(2)
         length = float(np.hypot(*tip))
         arm = c - anchor[j]
         if length > _TOL:
-            theta = math.atan2(tip[0], -tip[1])
+            t = math.atan2(tip[0], -tip[1])
         elif m > 0 and np.hypot(*arm) > _TOL:
-            theta, length = math.atan2(arm[0], -arm[1]), 0.0
+            t, length = math.atan2(arm[0], -arm[1]), 0.0
         else:
-            theta, length = theta_prev, 0.0
+            t, length = theta_parent, 0.0
+        theta.append(t)
         kw = {}
         if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
-            s = to2(np.array(data.xaxis[j]))
-            kw["axis"] = _wrap(math.atan2(s[1], s[0]) - theta_prev)
+            sd = to2(np.array(data.xaxis[j]))
+            kw["axis"] = _wrap(math.atan2(sd[1], sd[0]) - theta_parent)
         d = int(model.jnt_dofadr[j])
         if j in actuator:
             a = actuator[j]
             kw["gear"] = float(model.actuator_gear[a, 0] * model.actuator_gainprm[a, 0])
             if clamp and model.actuator_ctrllimited[a]:
                 kw["control_range"] = tuple(float(x) for x in model.actuator_ctrlrange[a])
+        if spring and model.jnt_stiffness[j] != 0:
+            kw["stiffness"] = float(model.jnt_stiffness[j])
+            kw["springref"] = float(model.qpos_spring[model.jnt_qposadr[j]])
+        # where the joint sits on its parent: the parent's tip unless it is not the parent's first child
+        at = anchor[j] if p == WORLD else anchor[j] - anchor[p]
+        if p == WORLD:
+            kw["attach"] = None if np.hypot(*at) <= _TOL else (float(at[0]), float(at[1]))
+        elif children[p][0] != j:  # (x, z) in the parent's frame: x along e, z against d
+            kw["attach"] = (float(at @ _e(theta_parent)), float(-(at @ _d(theta_parent))))
+        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE and np.array(data.xaxis[j]) @ Y > 0:
+            kw["sense"] = -1  # turns about +y where the first hinge turns about -y
         links.append(
             Link(
                 "revolute" if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE else "prismatic",
                 m,
                 length,
-                com=float(arm @ _d(theta)),
+                com=float(arm @ _d(t)),
                 inertia=inertia,
                 damping=float(model.dof_damping[d]) if damper else 0.0,
                 armature=float(model.dof_armature[d]),
-                com_normal=float(arm @ _e(theta)),
-                offset=_wrap(theta - theta_prev),
+                com_normal=float(arm @ _e(t)),
+                offset=_wrap(t - theta_parent),
+                parent=p,
                 **kw,
             )
         )
-        theta_prev = theta
     return Chain(links, gravity=G)

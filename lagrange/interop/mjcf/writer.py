@@ -10,14 +10,15 @@ readers::
 
     model = mujoco.MjModel.from_xml_string(to_mjcf(systems.acrobot(), timestep=0.01))
 
-Writing needs neither MuJoCo nor Brax. :func:`to_mjcf` writes one nested ``<body>`` per link. Our planar
-x-z conventions map onto MuJoCo's 3D frames as follows:
+Writing needs neither MuJoCo nor Brax. :func:`to_mjcf` writes one ``<body>`` per link, nested in its parent's (a
+link of the world in ``<worldbody>``). Our planar x-z conventions map onto MuJoCo's 3D frames as follows:
 
 - Every body frame is the link's frame: origin at the joint, local ``-z`` along the link
-  direction ``d(phi)`` and local ``+x`` along the normal ``e(phi)``. Body ``i`` sits at
-  ``(0, 0, -length[i-1])`` in its parent's frame, turned by the link's ``offset`` about ``(0, -1, 0)``.
-- A revolute joint is a ``hinge`` about ``(0, -1, 0)``: positive ``q`` turns ``d`` from
-  ``(0, -1)`` towards ``+x``, as :func:`lagrange.kinematics.positions` does.
+  direction ``d(phi)`` and local ``+x`` along the normal ``e(phi)``. Body ``i`` sits at its ``attach`` point
+  ``(x, 0, z)`` in its parent's frame (default ``(0, 0, -length_parent)``), turned by the link's ``offset`` about
+  ``(0, -1, 0)``.
+- A revolute joint is a ``hinge`` about ``(0, -1, 0)`` (``(0, 1, 0)`` for ``sense=-1``): positive ``q`` turns ``d``
+  from ``(0, -1)`` towards ``+x``, as :func:`lagrange.kinematics.positions` does.
 - A prismatic joint is a ``slide`` along ``e(phi_{i-1} + axis)``: ``(cos a, 0, sin a)`` in its own
   body's frame with ``a = axis - offset``.
 - Each body carries an explicit ``<inertial>`` (``inertiafromgeom="false"``): the link's mass
@@ -29,7 +30,7 @@ x-z conventions map onto MuJoCo's 3D frames as follows:
   a zero moment is written as ``tiny`` (default ``1e-12``). The exported dynamics then differ
   from the chain's by at most ``tiny`` times a squared lever arm, and not at all for a zero
   moment on a body that cannot rotate (e.g. a cart below no revolute joint).
-- Joint ``damping`` and ``armature`` are the joint's own; each actuated joint gets one
+- Joint ``damping``, ``armature``, ``stiffness`` and ``springref`` are the joint's own; each actuated joint gets one
   ``<motor>`` with the link's ``gear``, its ``control_range`` as ``ctrlrange`` (limited only
   where the link has one) and no force limits.
 - Geoms (capsules along each link, spheres for zero-length links) are for looking only:
@@ -133,22 +134,30 @@ def to_mjcf(
         "  </custom>",
         "  <worldbody>",
     ]
-    indent = "    "
     com_normal = _values(chain, "com_normal")
-    for i, joint in enumerate(chain.joints):
-        pos = _vec(0, 0, -length[i - 1]) if i > 0 else _vec(0, 0, 0)
+    attach = dict(zip(chain.attached, [] if chain.attach is None else _values(chain, "attach")))
+    stiffness, springref = _values(chain, "stiffness"), _values(chain, "springref")
+
+    def body(i: int, indent: str) -> None:
+        p = chain.parents[i]
+        if i in attach:  # (x, z) in the parent's frame (the world's for a link of the world)
+            pos = _vec(attach[i][0], 0, attach[i][1])
+        else:
+            pos = _vec(0, 0, -length[p]) if p >= 0 else _vec(0, 0, 0)
         offset = chain.offsets[i]
         turn = f' axisangle="{_vec(0, -1, 0, offset)}"' if offset != 0.0 else ""
         lines.append(f'{indent}<body name="link{i}" pos="{pos}"{turn}>')
         inner = indent + "  "
-        if joint == "revolute":
-            kind, axis = "hinge", _vec(0, -1, 0)
+        if chain.joints[i] == "revolute":
+            kind, axis = "hinge", _vec(0, -chain.senses[i], 0)
         else:  # the axis in this body's frame, turned by the offset against the parent's
             a = chain.axes[i] - offset
             kind, axis = "slide", _vec(math.cos(a), 0, math.sin(a))
         attrs = f'name="q{i}" type="{kind}" pos="0 0 0" axis="{axis}" limited="false"'
         attrs += f' damping="{_num(0.0 if damping is None else damping[i])}"'
         attrs += f' armature="{_num(0.0 if armature is None else armature[i])}"'
+        if stiffness is not None and stiffness[i] != 0:
+            attrs += f' stiffness="{_num(stiffness[i])}" springref="{_num(springref[i])}"'
         lines.append(f"{inner}<joint {attrs}/>")
         m = mass[i] if mass[i] > 0 else tiny
         moment = inertia[i] if inertia[i] > 0 else tiny
@@ -161,10 +170,12 @@ def to_mjcf(
         else:
             shape = f'type="sphere" size="{_num(2 * radius)}"'
         lines.append(f'{inner}<geom name="geom{i}" {shape} contype="0" conaffinity="0"/>')
-        indent = inner
-    for i in reversed(range(chain.n)):
-        indent = indent[:-2]
+        for c in chain.children(i):
+            body(c, inner)
         lines.append(f"{indent}</body>")
+
+    for root in chain.children(-1):
+        body(root, "    ")
     lines.append("  </worldbody>")
     if chain.actuated:
         lines.append("  <actuator>")
