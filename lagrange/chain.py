@@ -538,3 +538,80 @@ def _check_every_joint_moves_something(links: tuple[Link, ...], parents: tuple[i
                 f"({'; '.join(why)}); give one of links {tail} an inertia > 0 (or a mass off the joint's axis), "
                 f"or joint {j} an armature > 0"
             )
+
+
+# what each parameter array must satisfy: (field, the rule's words, a predicate true where a value breaks it)
+_RULES = (
+    ("mass", ">= 0", lambda x: x < 0),
+    ("length", ">= 0", lambda x: x < 0),
+    ("inertia", ">= 0", lambda x: x < 0),
+    ("damping", ">= 0", lambda x: x < 0),
+    ("armature", ">= 0", lambda x: x < 0),
+    ("stiffness", ">= 0", lambda x: x < 0),
+    ("gear", "> 0", lambda x: ~(x > 0)),
+    ("com", "finite", lambda x: x != x),
+    ("com_normal", "finite", lambda x: x != x),
+    ("springref", "finite", lambda x: x != x),
+    ("attach", "finite", lambda x: x != x),
+    ("gravity", "finite", lambda x: x != x),
+)
+
+
+def check_parameters(chain: Chain, *, at_run_time: bool = True) -> Chain:
+    """``chain`` with every parameter checked against its rule (masses, lengths, inertias, damping, armature and
+    stiffness >= 0, gears > 0, all finite), for parameters that did not pass through :class:`Chain`'s constructor:
+    set by ``eqx.tree_at``, or traced under ``jit``/``grad``/``vmap`` (a fit's parameters).
+
+    A concrete parameter is checked now, in NumPy; a traced one when it is computed, by ``eqx.branched_error_if``
+    tied to the returned chain's leaves (only with ``at_run_time=True``), which names the link. Either way the error
+    names the field, the link and the rule.
+
+    Args:
+        chain: the :class:`Chain`.
+        at_run_time: also check traced parameters at run time (a few comparisons per call).
+
+    Returns:
+        The chain (with the run-time checks tied to its traced parameters).
+
+    Raises:
+        ValueError: (now) for a concrete parameter that breaks its rule.
+        equinox.EquinoxRuntimeError: (when run) for a traced one.
+    """
+    updates = {}
+    for field, rule, broken in _RULES:
+        x = getattr(chain, field)
+        if x is None:
+            continue
+        if not isinstance(x, jax.core.Tracer):
+            v = np.asarray(x, dtype=float)
+            bad = broken(v) | ~np.isfinite(v)
+            if np.any(bad):
+                where = np.argwhere(bad)[0]
+                index = _index_words(chain, field, where)
+                raise ValueError(f"Chain.{field}{index} must be {_words(rule)}, got {float(v[tuple(where)])!r} "
+                                 "(a value set after construction: by eqx.tree_at, or traced)")
+        elif at_run_time:
+            bad = (broken(x) | ~jnp.isfinite(x)).reshape(-1)
+            cells = [_index_words(chain, field, np.unravel_index(k, jnp.shape(x))) for k in range(bad.size)]
+            messages = [f"Chain.{field}{c} must be {_words(rule)} (a value traced or set after construction breaks it)"
+                        for c in cells]
+            updates[field] = eqx.branched_error_if(x, jnp.any(bad), jnp.argmax(bad), messages or [""])
+    for field, value in updates.items():
+        chain = eqx.tree_at(lambda c: getattr(c, field), chain, value)
+    return chain
+
+
+def _words(rule: str) -> str:
+    return rule if rule == "finite" else f"{rule} and finite"
+
+
+def _index_words(chain: Chain, field: str, where) -> str:
+    """``[i] (link i)`` for a per-link entry; the link a gear or attach point belongs to; nothing for a scalar."""
+    where = tuple(int(w) for w in np.atleast_1d(where))
+    if not where:
+        return ""
+    if field == "gear":
+        return f"[{where[0]}] (link {chain.actuated[where[0]]})"
+    if field == "attach":
+        return f"[{where[0]}] (link {chain.attached[where[0]]})"
+    return f"[{where[0]}] (link {where[0]})"

@@ -36,7 +36,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float
 
 from lagrange import recursive, unrolled
 from lagrange.actuation import actuation_matrix
-from lagrange.chain import Chain
+from lagrange.chain import Chain, check_parameters
 
 __all__ = ["RECURSIVE_MIN", "SINGULAR", "actuation_matrix", "bias_forces", "energy", "forward_dynamics",
            "forward_dynamics_and_pivots", "gravity_forces", "inverse_dynamics", "mass_matrix"]
@@ -56,6 +56,12 @@ def _folded(chain: Chain) -> Chain:
     closed form 1.7-1.9x slower with its constants as arrays). Parameters being differentiated or vmapped are
     tracers and stay as they are."""
     return jax.tree_util.tree_map(_as_constant, chain)
+
+
+def _prepared(chain: Chain, *, at_run_time: bool = True) -> Chain:
+    """``chain`` with its parameters checked (:func:`lagrange.chain.check_parameters`: concrete ones now, traced ones
+    when run unless ``at_run_time=False``) and folded (:func:`_folded`)."""
+    return _folded(check_parameters(chain, at_run_time=at_run_time))
 
 
 def _check(chain: Chain, name: str, x, size: int):
@@ -114,7 +120,7 @@ def mass_matrix(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "
         ``M``, shape ``(*batch, n, n)`` [kg m^2, kg m or kg].
     """
     _check(chain, "q", q, chain.n)
-    chain = _folded(chain)
+    chain = _prepared(chain)
     if _recursive(chain):
         return recursive.mass_matrix(chain, q)
     return unrolled.mass_matrix(chain, q)
@@ -135,7 +141,7 @@ def bias_forces(
     """
     _check(chain, "q", q, chain.n)
     _check(chain, "qd", qd, chain.n)
-    chain = _folded(chain)
+    chain = _prepared(chain)
     if _recursive(chain):
         return recursive.bias_forces(chain, q, qd)
     return unrolled.bias_forces(chain, q, qd)
@@ -152,7 +158,7 @@ def gravity_forces(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array
         Shape ``(*batch, n)`` [N m or N].
     """
     _check(chain, "q", q, chain.n)
-    chain = _folded(chain)
+    chain = _prepared(chain)
     if _recursive(chain):
         return recursive.gravity_forces(chain, q)
     return unrolled.gravity_forces(chain, q)
@@ -178,19 +184,24 @@ def forward_dynamics(
             omitted for an unactuated chain.
         implicit_damping_dt: ``h`` [s] to solve with ``M + h diag(damping)`` instead of ``M``, the velocity
             update of :class:`lagrange.SemiImplicitEuler` (damping treated implicitly); ``None`` for ``M``.
-        check: raise where ``M`` is singular at ``q``; ``False`` skips the check (a NaN or Inf then comes out
-            instead, as inside :func:`lagrange.simulate`, which checks the final state).
+        check: raise where ``M`` is singular at ``q``, or where a traced parameter breaks its rule
+            (:func:`lagrange.chain.check_parameters`); ``False`` skips both run-time checks (a NaN or Inf then comes
+            out instead, as inside :func:`lagrange.simulate`, which checks the parameters once and the final state).
+            Concrete parameters are checked while tracing either way.
 
     Returns:
         ``qdd``, shape ``(*batch, n)`` [rad/s^2 or m/s^2].
 
     Raises:
+        ValueError: (while tracing) for a concrete parameter that breaks its rule (a negative mass set by
+            ``eqx.tree_at``, ...), naming the field and the link.
         equinox.EquinoxRuntimeError: (when run, with ``check=True``) if ``M`` is singular at ``q`` (a pivot of its
-            factorisation is not positive), with :data:`SINGULAR` as the message.
+            factorisation is not positive), with :data:`SINGULAR` as the message, or if a traced parameter breaks its
+            rule (naming the field and the link).
     """
     if not check:
-        return _forward(chain, q, qd, u, implicit_damping_dt, pivots=False)
-    qdd, singular = forward_dynamics_and_pivots(chain, q, qd, u, implicit_damping_dt=implicit_damping_dt)
+        return _forward(chain, q, qd, u, implicit_damping_dt, pivots=False, at_run_time=False)
+    qdd, singular = _forward(chain, q, qd, u, implicit_damping_dt, pivots=True, at_run_time=True)
     return eqx.error_if(qdd, singular, SINGULAR)
 
 
@@ -212,15 +223,15 @@ def forward_dynamics_and_pivots(
         pivot of the factorisation of ``M`` (ABA's articulated inertias ``D_i``; the LDL^T pivots, or the
         determinant for n <= 3) is not positive or not finite.
     """
-    return _forward(chain, q, qd, u, implicit_damping_dt, pivots=True)
+    return _forward(chain, q, qd, u, implicit_damping_dt, pivots=True, at_run_time=True)
 
 
-def _forward(chain: Chain, q, qd, u, implicit_damping_dt, *, pivots: bool):
+def _forward(chain: Chain, q, qd, u, implicit_damping_dt, *, pivots: bool, at_run_time: bool):
     _check(chain, "q", q, chain.n)
     _check(chain, "qd", qd, chain.n)
     if u is not None:
         _check(chain, "u", u, chain.m)
-    chain = _folded(chain)
+    chain = _prepared(chain, at_run_time=at_run_time)
     if _recursive(chain):
         return recursive.forward_dynamics(chain, q, qd, u, implicit_damping_dt=implicit_damping_dt, pivots=pivots)
     return unrolled.forward_dynamics(chain, q, qd, u, implicit_damping_dt, pivots=pivots)
@@ -244,6 +255,7 @@ def inverse_dynamics(
         Shape ``(*batch, n)`` [N m or N]; equal to ``B u`` when ``qdd = forward_dynamics(chain, q, qd, u)``.
     """
     _check(chain, "qdd", qdd, chain.n)
+    chain = check_parameters(chain)
     if _recursive(chain):
         _check(chain, "q", q, chain.n)
         _check(chain, "qd", qd, chain.n)
@@ -267,6 +279,7 @@ def energy(
     """
     _check(chain, "q", q, chain.n)
     _check(chain, "qd", qd, chain.n)
+    chain = check_parameters(chain)
     if _recursive(chain):
         return recursive.energy(chain, q, qd)
     return unrolled.energy(chain, q, qd)

@@ -58,6 +58,9 @@ def frames(chain: Chain, q: Float[ArrayLike, "*batch n"], qd: Float[ArrayLike, "
     [rad/s or m/s] of shape ``(*batch, n)``; positions in m. ``qd=None`` drops all velocity terms; ``tips=True`` adds
     the end of every link (``Frames.tips``; else ``None``)."""
     n = chain.n
+    for name, x in (("q", q), ("qd", qd)):
+        if x is not None and (jnp.ndim(x) == 0 or jnp.shape(x)[-1] != n):
+            raise ValueError(f"{name} must have shape (..., {n}) for this chain, got {jnp.shape(x)}")
     qs = _split(q, n)
     qds = _split(qd, n)
     off = chain.frame_offsets()

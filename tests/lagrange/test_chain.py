@@ -358,3 +358,35 @@ def test_non_finite_initial_state_is_reported():
     with pytest.raises(RuntimeError, match=r"non-finite"):
         traj = lg.simulate(acrobot(), jnp.array([NAN, 0.0]), jnp.zeros(2), jnp.zeros((3, 1)), 0.01)
         jax.block_until_ready(traj.q)
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("mass", [-1.0, 1.0], r"Chain\.mass\[0\] \(link 0\) must be >= 0 and finite, got -1\.0"),
+    ("inertia", [0.1, float("nan")], r"Chain\.inertia\[1\] \(link 1\) must be >= 0 and finite, got nan"),
+    ("gear", [-25.0], r"Chain\.gear\[0\] \(link 1\) must be > 0"),
+    ("gravity", float("inf"), r"Chain\.gravity must be finite, got inf"),
+])
+def test_parameters_set_after_construction_are_checked(field, value, message):
+    """A parameter set with ``eqx.tree_at`` skips the constructor: concrete, it is refused when the chain is used
+    (simulate, the dynamics, energy), naming the field and the link; traced (a fit under ``jit(grad)``), it is
+    refused when run."""
+    good = lg.systems.acrobot()
+    bad = eqx.tree_at(lambda c: getattr(c, field), good, jnp.asarray(value))
+    q = jnp.full(2, 0.1)
+    for use in (lambda c: lg.simulate(c, q, q, jnp.zeros((3, 1)), 0.01), lambda c: lg.mass_matrix(c, q),
+                lambda c: lg.forward_dynamics(c, q, q, jnp.zeros(1)), lambda c: lg.energy(c, q, q)):
+        with pytest.raises(ValueError, match=message):
+            use(bad)
+
+    def loss(x):
+        return lg.simulate(eqx.tree_at(lambda c: getattr(c, field), good, x), q, q, jnp.zeros((3, 1)), 0.01).q[-1, 0]
+
+    assert np.all(np.isfinite(eqx.filter_jit(jax.grad(loss))(getattr(good, field))))  # a valid one passes
+    traced = message.split(" must be")[0] + " must be"
+    with pytest.raises(eqx.EquinoxRuntimeError, match=traced):
+        eqx.filter_jit(jax.grad(loss))(jnp.asarray(value, getattr(good, field).dtype))
+
+
+def test_positions_check_the_length_of_q():
+    with pytest.raises(ValueError, match=r"q must have shape \(\.\.\., 2\) for this chain, got \(1,\)"):
+        lg.positions(lg.systems.acrobot(), jnp.zeros(1))

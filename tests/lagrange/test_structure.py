@@ -43,13 +43,15 @@ def live_eqns(jaxpr):
 
 
 class Traced:
-    """The live equations of ``forward_dynamics(chain, q, qd, u)`` and its input variables."""
+    """The live equations of ``forward_dynamics(chain, q, qd, u, check=False)`` and its input variables: the program of
+    the dynamics, without the run-time checks of traced parameters and pivots (``check=True``), which are
+    :func:`lagrange.chain.check_parameters`' and ``tests/lagrange/test_chain.py``'s concern."""
 
     def __init__(self, chain):
         self.chain = chain
         n, m = chain.n, chain.m
         args = (chain, jnp.zeros(n), jnp.zeros(n), jnp.zeros(m))
-        closed = jax.make_jaxpr(lambda c, q, qd, u: lg.forward_dynamics(c, q, qd, u if c.m else None))(*args)
+        closed = jax.make_jaxpr(lambda c, q, qd, u: lg.forward_dynamics(c, q, qd, u if c.m else None, check=False))(*args)
         self.jaxpr = closed.jaxpr
         self.eqns = live_eqns(self.jaxpr)
         self.counts = collections.Counter(e.primitive.name for e in self.eqns)
