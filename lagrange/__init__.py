@@ -1,6 +1,9 @@
-"""lagrange: exact, fast, differentiable dynamics of planar kinematic chains in pure JAX."""
+"""lagrange: exact, fast, differentiable dynamics of planar kinematic trees in pure JAX, with ground contact and joint
+limits by penalty forces."""
 
 from lagrange.chain import Chain, Link
+from lagrange.contact import PenaltyContact
+from lagrange.limits import PenaltyLimits
 from lagrange.actuation import actuation_matrix, clamp_controls
 from lagrange.dynamics import (
     bias_forces,
@@ -29,6 +32,8 @@ __all__ = [
     "systems",
     "Chain",
     "Link",
+    "PenaltyContact",
+    "PenaltyLimits",
     "actuation_matrix",
     "clamp_controls",
     "bias_forces",

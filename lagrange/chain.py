@@ -51,6 +51,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
+from lagrange.contact import PenaltyContact
+from lagrange.limits import PenaltyLimits
+
 JOINTS = ("revolute", "prismatic")
 """The joint kinds a :class:`Link` may have."""
 
@@ -91,6 +94,33 @@ def _check_scalar(name: str, value, *, positive: bool = False, nonnegative: bool
     if nonnegative and v < 0:
         raise ValueError(f"Link.{name} must be >= 0, got {v}")
     return value
+
+
+def _pair(name: str, value) -> tuple[float, float] | None:
+    """``None`` or ``(lo, hi)`` as floats with ``lo < hi``, both finite, else an error naming ``Link.name``."""
+    if value is None:
+        return None
+    try:
+        lo, hi = (float(x) for x in value)
+    except (TypeError, ValueError) as err:
+        raise TypeError(f"Link.{name} must be a pair (lower, upper) of numbers or None, got {value!r}") from err
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise ValueError(f"Link.{name} must be finite with lower < upper, got {value!r}")
+    return lo, hi
+
+
+def _points(name: str, value) -> tuple[tuple[float, float, float], ...]:
+    """A sequence of ``(x, z, radius)`` triples as floats (finite, radius >= 0), else an error naming ``Link.name``."""
+    try:
+        points = tuple(tuple(float(c) for c in p) for p in value)
+    except (TypeError, ValueError) as err:
+        raise TypeError(f"Link.{name} must be a sequence of points (x, z, radius), got {value!r}") from err
+    for k, p in enumerate(points):
+        if len(p) != 3:
+            raise ValueError(f"Link.{name}[{k}] must be a point (x, z, radius) of three numbers, got {p!r}")
+        if not all(math.isfinite(c) for c in p) or p[2] < 0:
+            raise ValueError(f"Link.{name}[{k}] must be finite with radius >= 0, got {p!r}")
+    return points
 
 
 def _check_point(name: str, value) -> None:
@@ -147,6 +177,11 @@ class Link(eqx.Module):
         sense: ``1`` (the default) or ``-1``: the way a revolute joint turns, ``phi_i = phi_parent + sense q_i``
             (``-1``: a MuJoCo hinge about ``+y`` among hinges about ``-y``, as in the Gymnasium hopper's root);
             static. A prismatic joint's direction is its ``axis`` (``sense`` must be 1).
+        range: ``(lower, upper)`` with ``lower < upper`` [rad or m]: the joint's range, enforced by the chain's
+            :class:`lagrange.PenaltyLimits`; ``None`` (the default): unlimited; static.
+        contacts: contact points ``(x, z, radius)`` in this link's frame [m] (a capsule's two end points, a
+            sphere's centre, each with its radius), pressed by the chain's :class:`lagrange.PenaltyContact`
+            against the ground; ``()`` (the default): this link cannot touch; static.
     """
 
     joint: str = eqx.field(static=True)
@@ -166,6 +201,8 @@ class Link(eqx.Module):
     stiffness: Float[ArrayLike, ""] = 0.0
     springref: Float[ArrayLike, ""] = 0.0
     sense: int = eqx.field(static=True, default=1)
+    range: tuple[float, float] | None = eqx.field(static=True, default=None)
+    contacts: tuple[tuple[float, float, float], ...] = eqx.field(static=True, default=())
 
     def __init__(
         self,
@@ -187,6 +224,8 @@ class Link(eqx.Module):
         stiffness: Float[ArrayLike, ""] = 0.0,
         springref: Float[ArrayLike, ""] = 0.0,
         sense: int = 1,
+        range: tuple[float, float] | None = None,
+        contacts=(),
     ):
         if isinstance(joint, np.str_):
             joint = str(joint)
@@ -230,6 +269,8 @@ class Link(eqx.Module):
         self.stiffness = stiffness
         self.springref = springref
         self.sense = int(sense)
+        self.range = _pair("range", range)
+        self.contacts = _points("contacts", contacts)
 
     def __check_init__(self):
         if not isinstance(self.joint, str) or self.joint not in JOINTS:
@@ -264,6 +305,10 @@ class Chain(eqx.Module):
     Args:
         links: a non-empty sequence of :class:`Link`, parents before their children.
         gravity: gravitational acceleration [m/s^2] along -z; finite.
+        contact: the ground contact law (:class:`lagrange.PenaltyContact`) pressing the links' ``contacts`` points;
+            ``None`` (the default): no contact. Given exactly when some link has contact points.
+        limits: the joint limit law (:class:`lagrange.PenaltyLimits`) enforcing the links' ``range``; ``None`` (the
+            default): no limits. Given exactly when some link has a range.
 
     Attributes:
         parents: each link's parent, ``-1`` for the world (static).
@@ -271,6 +316,9 @@ class Chain(eqx.Module):
             ``attach[k]`` belongs to link ``attached[k]`` (static).
         sprung: the links whose joint has a spring (``stiffness > 0``) (static).
         senses: each joint's ``sense``, ``1`` or ``-1`` (static).
+        limited: the links with a ``range``; ``ranges[k]`` is link ``limited[k]``'s ``(lower, upper)`` (static).
+        contact_links: the link of each contact point; ``contact_points[k]`` is point ``k``'s ``(x, z, radius)`` in
+            its link's frame (static).
 
     Raises:
         TypeError, ValueError: naming the bad field, for a parameter of the wrong type, sign or
@@ -291,6 +339,10 @@ class Chain(eqx.Module):
     attach: Float[Array, "k 2"] | None
     stiffness: Float[Array, " n"] | None
     springref: Float[Array, " n"] | None
+    ranges: Float[Array, "l 2"] | None
+    contact_points: Float[Array, "k 3"] | None
+    contact: PenaltyContact | None
+    limits: PenaltyLimits | None
     joints: tuple[str, ...] = eqx.field(static=True)
     axes: tuple[float, ...] = eqx.field(static=True)
     offsets: tuple[float, ...] = eqx.field(static=True)
@@ -302,8 +354,11 @@ class Chain(eqx.Module):
     attached: tuple[int, ...] = eqx.field(static=True)
     sprung: tuple[int, ...] = eqx.field(static=True)
     senses: tuple[int, ...] = eqx.field(static=True)
+    limited: tuple[int, ...] = eqx.field(static=True)
+    contact_links: tuple[int, ...] = eqx.field(static=True)
 
-    def __init__(self, links: Sequence[Link], gravity: Float[ArrayLike, ""] = 9.81):
+    def __init__(self, links: Sequence[Link], gravity: Float[ArrayLike, ""] = 9.81, *,
+                 contact: PenaltyContact | None = None, limits: PenaltyLimits | None = None):
         if isinstance(links, Link):
             raise TypeError("Chain.links must be a sequence of Link, got a single Link; wrap it in a list")
         links = tuple(links)
@@ -352,6 +407,30 @@ class Chain(eqx.Module):
         self.stiffness = _stack([lk.stiffness for lk in links], dtype) if self.sprung else None
         self.springref = _stack([lk.springref for lk in links], dtype) if self.sprung else None
         self.senses = tuple(lk.sense for lk in links)
+        self.limited = tuple(i for i, lk in enumerate(links) if lk.range is not None)
+        self.ranges = _stack_points([links[i].range for i in self.limited], dtype) if self.limited else None
+        self.contact_links = tuple(i for i, lk in enumerate(links) for _ in lk.contacts)
+        self.contact_points = (_stack_points([p for lk in links for p in lk.contacts], dtype)
+                               if self.contact_links else None)
+        if contact is not None and not isinstance(contact, PenaltyContact):
+            raise TypeError(f"Chain.contact must be a lagrange.PenaltyContact or None, got {type(contact).__name__}")
+        if limits is not None and not isinstance(limits, PenaltyLimits):
+            raise TypeError(f"Chain.limits must be a lagrange.PenaltyLimits or None, got {type(limits).__name__}")
+        if (contact is None) != (not self.contact_links):
+            raise ValueError(
+                f"Chain: links {sorted(set(self.contact_links))} have contact points but the chain has no contact "
+                "law: pass Chain(..., contact=lagrange.PenaltyContact(ke, kd, kf, mu)), or drop the points"
+                if contact is None else
+                "Chain.contact is given but no link has contact points: give links Link(..., contacts=[(x, z, "
+                "radius), ...]), or drop contact")
+        if (limits is None) != (not self.limited):
+            raise ValueError(
+                f"Chain: links {list(self.limited)} have a range but the chain has no limit law: pass "
+                "Chain(..., limits=lagrange.PenaltyLimits(ke, kd)), or drop the ranges"
+                if limits is None else
+                "Chain.limits is given but no link has a range: give links Link(..., range=(lower, upper)), or drop "
+                "limits")
+        self.contact, self.limits = contact, limits
 
     def frame_offsets(self) -> tuple[float, ...]:
         """Each link frame's angle at ``q = 0`` [rad], the sum of the offsets on its path from the world:
@@ -396,7 +475,8 @@ class Chain(eqx.Module):
         return tuple(zip(starts, starts[1:] + [self.n]))
 
     def links(self) -> tuple[Link, ...]:
-        """The chain as a tuple of :class:`Link` (for editing and re-building)."""
+        """The chain as a tuple of :class:`Link` (for editing and re-building with ``Chain(links, gravity,
+        contact=chain.contact, limits=chain.limits)``)."""
         out = []
         k = {j: i for i, j in enumerate(self.actuated)}
         at = {j: i for i, j in enumerate(self.attached)}
@@ -421,6 +501,9 @@ class Chain(eqx.Module):
                     stiffness=self.stiffness[i] if sprung else 0.0,
                     springref=self.springref[i] if sprung else 0.0,
                     sense=self.senses[i],
+                    range=None if i not in self.limited else tuple(float(x) for x in self.ranges[self.limited.index(i)]),
+                    contacts=tuple(tuple(float(x) for x in self.contact_points[k])
+                                   for k, link in enumerate(self.contact_links) if link == i),
                 )
             )
         return tuple(out)
@@ -554,6 +637,15 @@ _RULES = (
     ("springref", "finite", lambda x: x != x),
     ("attach", "finite", lambda x: x != x),
     ("gravity", "finite", lambda x: x != x),
+    ("ranges", "finite", lambda x: x != x),
+    ("contact_points", "finite, radii >= 0", lambda x: (x < 0) & (np.arange(x.shape[-1]) == 2)),
+    ("contact.ke", "> 0", lambda x: ~(x > 0)),
+    ("contact.kd", ">= 0", lambda x: x < 0),
+    ("contact.kf", ">= 0", lambda x: x < 0),
+    ("contact.mu", ">= 0", lambda x: x < 0),
+    ("contact.ground", "finite", lambda x: x != x),
+    ("limits.ke", "> 0", lambda x: ~(x > 0)),
+    ("limits.kd", ">= 0", lambda x: x < 0),
 )
 
 
@@ -579,7 +671,7 @@ def check_parameters(chain: Chain, *, at_run_time: bool = True) -> Chain:
     """
     updates = {}
     for field, rule, broken in _RULES:
-        x = getattr(chain, field)
+        x = _get(chain, field)
         if x is None:
             continue
         if not isinstance(x, jax.core.Tracer):
@@ -597,12 +689,20 @@ def check_parameters(chain: Chain, *, at_run_time: bool = True) -> Chain:
                         for c in cells]
             updates[field] = eqx.branched_error_if(x, jnp.any(bad), jnp.argmax(bad), messages or [""])
     for field, value in updates.items():
-        chain = eqx.tree_at(lambda c: getattr(c, field), chain, value)
+        chain = eqx.tree_at(lambda c: _get(c, field), chain, value)
     return chain
 
 
+def _get(chain: Chain, field: str):
+    """``chain.a.b`` for ``field = "a.b"``; ``None`` where a part is ``None``."""
+    x = chain
+    for part in field.split("."):
+        x = None if x is None else getattr(x, part)
+    return x
+
+
 def _words(rule: str) -> str:
-    return rule if rule == "finite" else f"{rule} and finite"
+    return rule if rule.startswith("finite") else f"{rule} and finite"
 
 
 def _index_words(chain: Chain, field: str, where) -> str:
@@ -614,4 +714,8 @@ def _index_words(chain: Chain, field: str, where) -> str:
         return f"[{where[0]}] (link {chain.actuated[where[0]]})"
     if field == "attach":
         return f"[{where[0]}] (link {chain.attached[where[0]]})"
+    if field == "ranges":
+        return f"[{where[0]}] (link {chain.limited[where[0]]})"
+    if field == "contact_points":
+        return f"[{where[0]}] (link {chain.contact_links[where[0]]})"
     return f"[{where[0]}] (link {where[0]})"

@@ -27,7 +27,8 @@ class Frames(NamedTuple):
     ``tip``: (x, z) of the end of the last link; ``angle_rate[i]``: phi_i's time derivative
     (``None`` when velocities were not asked for); ``revolute_before[i]``: the revolute joints on the path
     from the world to link i, i included (the rows of phi_i's Jacobian, each joint's ``sense``); ``tips[i]``: (x, z) of the end
-    of link i (``length`` along its direction from its joint), or ``None`` when not asked for.
+    of link i (``length`` along its direction from its joint), or ``None`` when not asked for; ``points[k]``: (x, z)
+    of the ``k``-th point asked for.
     """
 
     origin: list
@@ -36,6 +37,7 @@ class Frames(NamedTuple):
     angle_rate: list
     revolute_before: list
     tips: list
+    points: list
 
 
 def _vec_scale(v, c):
@@ -53,10 +55,11 @@ def _split(x, n: int):
 
 
 def frames(chain: Chain, q: Float[ArrayLike, "*batch n"], qd: Float[ArrayLike, "*batch n"] | None = None, *,
-           tips: bool = False) -> Frames:
+           tips: bool = False, points=()) -> Frames:
     """Jets of every joint origin and centre of mass, at joint coordinates ``q`` [rad or m] and velocities ``qd``
     [rad/s or m/s] of shape ``(*batch, n)``; positions in m. ``qd=None`` drops all velocity terms; ``tips=True`` adds
-    the end of every link (``Frames.tips``; else ``None``)."""
+    the end of every link (``Frames.tips``; else ``None``); ``points``, a sequence of ``(link, x, z)`` (a point
+    ``(x, z)`` of the link's frame), adds their jets (``Frames.points``)."""
     n = chain.n
     for name, x in (("q", q), ("qd", qd)):
         if x is not None and (jnp.ndim(x) == 0 or jnp.shape(x)[-1] != n):
@@ -101,7 +104,9 @@ def frames(chain: Chain, q: Float[ArrayLike, "*batch n"], qd: Float[ArrayLike, "
         rev.append(revolute)
     ends = [_vec_add(origin[i], _along(state[i][1], state[i][2], off[i], chain.length[i], None))
             for i in (range(n) if tips else [n - 1])]
-    return Frames(origin, com, ends[-1], rates, rev, ends if tips else None)
+    # a point (x, z) of link i's frame is at p_i + x e(phi + off) - z d(phi + off)
+    marked = [_vec_add(origin[i], _along(state[i][1], state[i][2], off[i], s.neg(z), x)) for i, x, z in points]
+    return Frames(origin, com, ends[-1], rates, rev, ends if tips else None, marked)
 
 
 def _along(sin_phi, cos_phi, off: float, c_d, c_e):

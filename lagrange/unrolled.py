@@ -53,7 +53,39 @@ def _terms(chain: Chain, q, qd, *, mass: bool, velocity: bool, gravity: bool):
     if f is not None and velocity and chain.stiffness is not None:  # the joint springs, with the damping
         for j in chain.sprung:
             f[j] = s.add(f[j], s.mul(chain.stiffness[j], s.sub(q[..., j], chain.springref[j])))
+    if f is not None and velocity and chain.limits is not None:  # the limits' penalty, a force the joints receive
+        tau = chain.limits.forces(q[..., list(chain.limited)], qd[..., list(chain.limited)], chain.ranges[:, 0],
+                                  chain.ranges[:, 1])
+        for k, j in enumerate(chain.limited):
+            f[j] = s.sub(f[j], tau[..., k])
+    if f is not None and velocity and chain.contact is not None:
+        for j, tau in enumerate(_contact_forces(chain, q, qd)):
+            f[j] = s.sub(f[j], tau)
     return M, f
+
+
+def _spots(chain: Chain, q, qd):
+    """Per contact point: its link, radius, and the jets (x, z) of the point (:func:`lagrange.kinematics.frames`)."""
+    points = [(i, p[0], p[1]) for i, p in zip(chain.contact_links, chain.contact_points)]
+    f = frames(chain, q, qd, points=points)
+    return f, [(i, p[2], xz) for i, p, xz in zip(chain.contact_links, chain.contact_points, f.points)]
+
+
+def _contact_forces(chain: Chain, q, qd) -> list:
+    """``J_s^T (ft, fn)`` summed over the contact points, per joint (scalars): the force at each point's lowest spot
+    ``s = p - r e_z``, whose material velocity is the point's plus ``w perp(s - p) = (w r, 0)``."""
+    f, spots = _spots(chain, q, qd)
+    like = q[..., 0]
+    out = [0.0] * chain.n
+    for link, r, (x, z) in spots:
+        w = s.as_array(f.angle_rate[link], like)
+        depth = chain.contact.ground - (s.as_array(z.v, like) - r)
+        fn, ft = chain.contact.forces(depth, s.as_array(z.vd, like), s.as_array(x.vd, like) + w * r)
+        for j in set(x.g) | set(z.g):
+            out[j] = s.add(out[j], s.add(s.mul(x.g.get(j, 0.0), ft), s.mul(z.g.get(j, 0.0), fn)))
+        for j in f.revolute_before[link]:  # the moment r ft of the force at s about p, d phi / d q_j = sense_j
+            out[j] = s.add(out[j], s.mul(float(chain.senses[j]) * r, ft))
+    return out
 
 
 def _stack(xs, like):
@@ -125,4 +157,10 @@ def energy(chain: Chain, q, qd):
     for j in chain.sprung:
         stretch = s.sub(q[..., j], chain.springref[j])
         pot = s.add(pot, s.mul(0.5 * chain.stiffness[j], s.mul(stretch, stretch)))
+    if chain.limits is not None:
+        v = chain.limits.energy(q[..., list(chain.limited)], chain.ranges[:, 0], chain.ranges[:, 1])
+        pot = s.add(pot, jnp.sum(v, axis=-1))
+    if chain.contact is not None:
+        for _, r, (_, z) in _spots(chain, q, None)[1]:
+            pot = s.add(pot, chain.contact.energy(chain.contact.ground - (s.as_array(z.v, like) - r)))
     return s.as_array(kin, like), s.as_array(pot, like)

@@ -18,6 +18,7 @@ import numpy as np
 from lagrange import _scalar as s
 from lagrange.actuation import clamp_controls
 from lagrange.chain import Chain
+from lagrange.recursive.contact import contact_wrenches
 from lagrange.recursive.kinematics import LinkKinematics
 from lagrange.recursive.rnea import passive_force
 from lagrange.recursive.tree import arrays, links_last, param, prepare, split_links
@@ -58,7 +59,11 @@ def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, p
     if implicit_damping_dt is not None and chain.damping is not None:
         extra = s.add(0.0 if extra is None else extra, implicit_damping_dt * param(chain.damping, nb))
     S = k.S
-    xs = dict(hx=k.hx, hz=k.hz, pt=k.pA[0], px=k.pA[1], pz=k.pA[2], rx=k.rx, rz=k.rz, cx=k.cx, cz=k.cz, tau=tau,
+    pA = k.pA
+    external = contact_wrenches(chain, k)
+    if external is not None:  # the contact forces leave the links' bias forces
+        pA = tuple(a - f for a, f in zip(pA, external))
+    xs = dict(hx=k.hx, hz=k.hz, pt=pA[0], px=pA[1], pz=pA[2], rx=k.rx, rz=k.rz, cx=k.cx, cz=k.cz, tau=tau,
               s0=S[0], s1=S[1], s2=S[2])
     params = dict(m=k.m, J=k.J, extra=extra)
     xs, consts = split_links(xs, params, nb)

@@ -5,12 +5,14 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from lagrange.chain import Chain
+from lagrange.recursive.contact import contact_energy, limit_energy
 from lagrange.recursive.kinematics import LinkKinematics
 from lagrange.recursive.tree import param, prepare
 
 
 def energy(chain: Chain, q, qd):
-    """``(kinetic, potential)`` energy [J], potential zero at the chain's origin."""
+    """``(kinetic, potential)`` energy [J], potential zero at the chain's origin; the potential includes the joint
+    springs and the penalty springs of limits and contact."""
     batch, _, q, qd = prepare(chain, q, qd)
     k = LinkKinematics(chain, q, qd, len(batch))
     # kinetic energy of body i = 1/2 v^T I v with the momentum from the spatial inertia
@@ -26,4 +28,7 @@ def energy(chain: Chain, q, qd):
     if chain.stiffness is not None:  # the joint springs' 1/2 K (q - q_ref)^2
         stretch = q - param(chain.springref, len(batch))
         pot = pot + 0.5 * jnp.sum(param(chain.stiffness, len(batch)) * stretch * stretch, axis=0)
+    for extra in (limit_energy(chain, q), contact_energy(chain, k)):  # the penalty springs
+        if extra is not None:
+            pot = pot + extra
     return kin, pot

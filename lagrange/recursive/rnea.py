@@ -13,6 +13,7 @@ import jax.numpy as jnp
 
 from lagrange import _scalar as s
 from lagrange.chain import Chain
+from lagrange.recursive.contact import contact_wrenches, limit_torques
 from lagrange.recursive.kinematics import LinkKinematics
 from lagrange.recursive.tree import links_first, links_last, param, prepare
 
@@ -31,11 +32,15 @@ def spring_force(chain: Chain, q):
 
 
 def passive_force(chain: Chain, q, qd):
-    """``D qd + K (q - q_ref)`` (links first): the joints' dampers and springs, or ``None`` without either."""
+    """``D qd + K (q - q_ref) - tau_limits`` (links first): the joints' dampers, springs and limits, or ``None``
+    without any."""
     out = damping_force(chain, qd)
     springs = spring_force(chain, q)
     if springs is not None:
         out = springs if out is None else out + springs
+    limits = limit_torques(chain, q, qd)
+    if limits is not None:
+        out = -limits if out is None else out - limits
     return out
 
 
@@ -59,6 +64,9 @@ def _rnea(chain: Chain, k: LinkKinematics, qdd, gravity: bool):
     t, Fx, Fz = k.momentum(al, ax, az)
     if k.pA is not None:
         t, Fx, Fz = t + k.pA[0], Fx + k.pA[1], Fz + k.pA[2]
+        external = contact_wrenches(chain, k)
+        if external is not None:
+            t, Fx, Fz = t - external[0], Fx - external[1], Fz - external[2]
     like = k.sin
     t, Fx, Fz = (jnp.broadcast_to(x, like.shape) for x in (t, Fx, Fz))
     Fx, Fz = tree.subtree_sum(Fx), tree.subtree_sum(Fz)

@@ -9,9 +9,13 @@ from __future__ import annotations
 
 import math
 
+import equinox as eqx
+import jax.numpy as jnp
 import numpy as np
 
 from lagrange.chain import WORLD, Chain, Link
+from lagrange.contact import PenaltyContact
+from lagrange.limits import PenaltyLimits
 from lagrange.interop.mjcf.runtime import compile_model, import_mujoco
 
 LIMITS = ("raise", "ignore")
@@ -43,11 +47,11 @@ def _refuse(mujoco, model, limits: str, contact: str) -> None:
                 f"from_mjcf: {nm('joint', j)} is a {kind.name[6:].lower()} joint; a planar chain has hinges and slides "
                 "only (model the motion with hinges and slides in one plane)"
             )
-        if model.jnt_limited[j] and constraints and not off & bit.mjDSBL_LIMIT and limits == "raise":
+        if _limited(mujoco, model, j) and isinstance(limits, str) and limits == "raise":
             raise ValueError(
-                f"from_mjcf: {nm('joint', j)} is limited (range {list(model.jnt_range[j])}); the chain has no joint "
-                "limits. from_mjcf(..., limits=\"ignore\") loads it without them (exact while the joint stays inside its "
-                "range)"
+                f"from_mjcf: {nm('joint', j)} is limited (range {list(model.jnt_range[j])}). from_mjcf(..., "
+                "limits=lagrange.PenaltyLimits(ke, kd)) loads it with penalty limits, limits=\"ignore\" without them "
+                "(exact while the joint stays inside its range)"
             )
     for d in range(model.nv):
         if model.dof_frictionloss[d] != 0 and constraints and not off & bit.mjDSBL_FRICTIONLOSS:
@@ -103,8 +107,15 @@ def _refuse(mujoco, model, limits: str, contact: str) -> None:
                 f"{nm('joint', order[a - 1])}: with u = ctrl a chain's actuators are declared in joint order; reorder "
                 "the <actuator> elements"
             )
-    if contact == "raise":
+    if isinstance(contact, str) and contact == "raise":
         _refuse_contacts(mujoco, model, nm)
+
+
+def _limited(mujoco, model, j) -> bool:
+    """Whether MuJoCo enforces joint ``j``'s range (limited, and neither constraints nor limits disabled)."""
+    off = model.opt.disableflags
+    bit = mujoco.mjtDisableBit
+    return bool(model.jnt_limited[j]) and not off & bit.mjDSBL_CONSTRAINT and not off & bit.mjDSBL_LIMIT
 
 
 def _refuse_contacts(mujoco, model, nm) -> None:
@@ -213,7 +224,7 @@ def _wrap(a: float) -> float:
     return math.pi if a == -math.pi else a
 
 
-def from_mjcf(source, *, limits: str = "raise", contact: str = "raise") -> Chain:
+def from_mjcf(source, *, limits: str | PenaltyLimits = "raise", contact: str | PenaltyContact = "raise") -> Chain:
     """A planar kinematic tree read from MJCF, with ``q`` equal to MuJoCo's ``qpos``.
 
     The model is compiled by MuJoCo itself (inertias from geoms, defaults classes, ``fromto``, degrees,
@@ -245,10 +256,16 @@ def from_mjcf(source, *, limits: str = "raise", contact: str = "raise") -> Chain
 
     Args:
         source: a path to an MJCF file, an MJCF string, or a compiled ``mujoco.MjModel``.
-        limits: ``"raise"`` (refuse a model with a limited joint) or ``"ignore"`` (load it without the
-            limits: exact while every joint stays inside its range).
-        contact: ``"raise"`` (refuse a model in which two geoms can touch) or ``"ignore"`` (load it without
-            contact: exact while nothing touches, e.g. a walker in the air).
+        limits: ``"raise"`` (refuse a model with a limited joint), ``"ignore"`` (load it without the
+            limits: exact while every joint stays inside its range), or a :class:`lagrange.PenaltyLimits`: each
+            limited joint gets its ``range`` and the chain this penalty law (not MuJoCo's constraint solver).
+        contact: ``"raise"`` (refuse a model in which two geoms can touch), ``"ignore"`` (load it without
+            contact: exact while nothing touches, e.g. a walker in the air), or a :class:`lagrange.PenaltyContact`:
+            ground contact, DFlex's penalty law, not MuJoCo's soft-constraint solver. The ground is the model's one
+            plane geom of the world body (its height replaces the law's ``ground``); the contact points come from
+            the capsules (both end points) and spheres (the centre), each with its radius, that MuJoCo's
+            ``contype``/``conaffinity`` rule lets touch that plane; any other geom type that can touch it is
+            refused by name. Contacts between the model's own geoms are left out (DFlex has none).
 
     Returns:
         The :class:`~lagrange.chain.Chain` (float64 where JAX's x64 is enabled).
@@ -263,10 +280,10 @@ def from_mjcf(source, *, limits: str = "raise", contact: str = "raise") -> Chain
             gravity compensation, fluid forces, actuators other than motors with a positive gear, force limits,
             two motors on one joint.
     """
-    if limits not in LIMITS:
-        raise ValueError(f"from_mjcf: limits must be one of {LIMITS}, got {limits!r}")
-    if contact not in CONTACTS:
-        raise ValueError(f"from_mjcf: contact must be one of {CONTACTS}, got {contact!r}")
+    if not isinstance(limits, PenaltyLimits) and limits not in LIMITS:
+        raise ValueError(f"from_mjcf: limits must be one of {LIMITS} or a lagrange.PenaltyLimits, got {limits!r}")
+    if not isinstance(contact, PenaltyContact) and contact not in CONTACTS:
+        raise ValueError(f"from_mjcf: contact must be one of {CONTACTS} or a lagrange.PenaltyContact, got {contact!r}")
     mujoco = import_mujoco()
     model = compile_model(source)
     _refuse(mujoco, model, limits, contact)
@@ -313,6 +330,10 @@ def from_mjcf(source, *, limits: str = "raise", contact: str = "raise") -> Chain
     clamp = not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL
     damper = not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_DAMPER
     spring = not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_SPRING
+    touching, ground = {}, None
+    if isinstance(contact, PenaltyContact):
+        touching, ground = _ground_contacts(mujoco, model, data, last_joint, origin, Z, to2)
+        contact = eqx.tree_at(lambda c: c.ground, contact, jnp.asarray(ground, contact.ground.dtype))
     links, theta = [], []
     for j in range(n):
         p = parents[j]
@@ -350,6 +371,10 @@ def from_mjcf(source, *, limits: str = "raise", contact: str = "raise") -> Chain
             kw["attach"] = (float(at @ _e(theta_parent)), float(-(at @ _d(theta_parent))))
         if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE and np.array(data.xaxis[j]) @ Y > 0:
             kw["sense"] = -1  # turns about +y where the first hinge turns about -y
+        if isinstance(limits, PenaltyLimits) and _limited(mujoco, model, j):
+            kw["range"] = tuple(float(x) for x in model.jnt_range[j])
+        if j in touching:
+            kw["contacts"] = [_in_frame(point - anchor[j], t) + (r,) for point, r in touching[j]]
         links.append(
             Link(
                 "revolute" if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE else "prismatic",
@@ -365,4 +390,46 @@ def from_mjcf(source, *, limits: str = "raise", contact: str = "raise") -> Chain
                 **kw,
             )
         )
-    return Chain(links, gravity=G)
+    return Chain(links, gravity=G, contact=contact if touching else None,
+                 limits=limits if any(lk.range is not None for lk in links) else None)
+
+
+def _in_frame(r, theta: float) -> tuple[float, float]:
+    """A plane vector ``r`` as ``(x, z)`` in a frame of angle ``theta``: x along ``e(theta)``, z against ``d(theta)``."""
+    return float(r @ _e(theta)), float(-(r @ _d(theta)))
+
+
+def _ground_contacts(mujoco, model, data, last_joint, origin, Z, to2):
+    """The contact points of the geoms that can touch the ground plane, per link (the last joint of each geom's
+    rigid group): ``{link: [(point in the plane at qpos = 0, radius), ...]}``; and the plane's height."""
+    nm = lambda kind, i: _name(mujoco, model, kind, i)  # noqa: E731
+    kinds = mujoco.mjtGeom
+    planes = [g for g in range(model.ngeom) if model.geom_type[g] == kinds.mjGEOM_PLANE and model.geom_bodyid[g] == 0]
+    if len(planes) != 1:
+        raise NotImplementedError(f"from_mjcf: contact=PenaltyContact(...) presses the model against its ground, the "
+                                  f"one plane geom of the world body; the model has {len(planes)}")
+    plane = planes[0]
+    normal = np.array(data.geom_xmat[plane]).reshape(3, 3)[:, 2]
+    if abs(normal @ Z) < 1 - 1e-9:
+        raise NotImplementedError(f"from_mjcf: the ground {nm('geom', plane)} is not level in the chain's plane "
+                                  f"(its normal {normal.round(6).tolist()} is not the plane's up {Z.round(6).tolist()})")
+    height = float((np.array(data.geom_xpos[plane]) - origin) @ Z)
+    weld = model.body_weldid
+    touching: dict[int, list] = {}
+    for g in sorted({g for pair in contact_pairs(mujoco, model) if plane in pair for g in pair if g != plane}):
+        body = int(weld[model.geom_bodyid[g]])
+        if body == 0:
+            continue  # another static geom of the world
+        centre = np.array(data.geom_xpos[g])
+        if model.geom_type[g] == kinds.mjGEOM_CAPSULE:
+            axis = np.array(data.geom_xmat[g]).reshape(3, 3)[:, 2] * model.geom_size[g, 1]
+            ends = [centre - axis, centre + axis]
+        elif model.geom_type[g] == kinds.mjGEOM_SPHERE:
+            ends = [centre]
+        else:
+            raise NotImplementedError(
+                f"from_mjcf: {nm('geom', g)} is a {kinds(model.geom_type[g]).name[7:].lower()} that can touch the "
+                "ground; PenaltyContact takes capsules and spheres: replace it, or set its contype and conaffinity "
+                "to 0")
+        touching.setdefault(last_joint[body], []).extend((to2(e - origin), float(model.geom_size[g, 0])) for e in ends)
+    return touching, height

@@ -1,0 +1,98 @@
+"""Ground contact by penalty forces (DFlex's law, in the plane), differentiable almost everywhere.
+
+Contact geometry belongs to links: points ``(x, z)`` in a link's frame with a radius ``r`` (``Link(contacts=...)``; a
+capsule contributes its two end points, a sphere its centre). The ground is the level line ``z = ground``. A point's
+lowest spot ``s = p - r e_z`` below the ground at depth ``d = ground - s_z > 0``, whose material velocity (the link's
+velocity at ``s``) has the normal part ``vn`` and the part along the ground ``vt``, receives at ``s`` the force
+
+- normal (along ``+z``): ``fn = ke d + kd d max(-vn, 0)``,
+- along the ground: ``ft = -clip(kf vt, -mu ke d, mu ke d)``,
+
+and nothing where ``d <= 0``. The generalized force is ``J_s^T (ft, fn)`` with ``J_s`` the Jacobian of the material
+point at ``s``. The potential energy of the springs is ``1/2 ke d^2`` per point.
+
+Gradients stay finite everywhere: the law is a polynomial in ``d``, ``vn`` and ``vt`` clipped and selected with
+``where`` (both sides finite; at ``d = 0`` and ``vn = 0`` the derivative is the one-sided one of the zero side), and no
+direction is normalised (the ground's normal is constant), so ``d = 0``, ``vt = 0`` and ``vn = 0`` exactly give finite
+forward- and reverse-mode derivatives. The parameters are arrays: ``jax.grad`` with respect to ``ke``, ``kd``, ``kf``,
+``mu`` and ``ground`` works (contact system identification).
+
+This is DFlex's penalty model (NVlabs/DiffRL, ``dflex/dflex/sim.py``), not MuJoCo's soft-constraint solver; results
+compared with MuJoCo's contact agree in kind, not to round-off.
+"""
+
+from __future__ import annotations
+
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, ArrayLike, Float
+
+
+def scalar_parameter(cls: str, name: str, value, *, positive: bool = False):
+    """A real scalar parameter as a JAX array, checked when concrete (``>= 0``, or ``> 0`` with ``positive``)."""
+    if isinstance(value, (bool, str)) or value is None:
+        raise TypeError(f"{cls}.{name} must be a real number, got {value!r}")
+    if not isinstance(value, jax.core.Tracer):
+        try:
+            v = np.asarray(value, dtype=float)
+        except (TypeError, ValueError) as err:
+            raise TypeError(f"{cls}.{name} must be a real number, got {value!r}") from err
+        if v.shape != ():
+            raise ValueError(f"{cls}.{name} must be a scalar, got shape {v.shape}")
+        if not math.isfinite(float(v)) or (float(v) <= 0 if positive else float(v) < 0):
+            raise ValueError(f"{cls}.{name} must be finite and {'> 0' if positive else '>= 0'}, got {float(v)}")
+        return jax.device_put(v.astype(jax.dtypes.canonicalize_dtype(float)))
+    return jnp.asarray(value, jax.dtypes.canonicalize_dtype(float))
+
+
+class PenaltyContact(eqx.Module):
+    """Ground contact by penalty forces (see the module docstring for the law).
+
+    Args:
+        ke: contact stiffness [N/m], > 0.
+        kd: contact damping [N s/m^2]: the normal force gains ``kd d`` per m/s of approach, >= 0.
+        kf: friction's viscous gain [N s/m], >= 0.
+        mu: friction coefficient, >= 0: the friction force is at most ``mu ke d``.
+        ground: the ground's height [m] (the level line ``z = ground``).
+
+    Attributes:
+        ke, kd, kf, mu, ground: the parameters, as 0-d arrays (differentiable).
+    """
+
+    ke: Float[Array, ""]
+    kd: Float[Array, ""]
+    kf: Float[Array, ""]
+    mu: Float[Array, ""]
+    ground: Float[Array, ""]
+
+    def __init__(self, ke: Float[ArrayLike, ""], kd: Float[ArrayLike, ""], kf: Float[ArrayLike, ""],
+                 mu: Float[ArrayLike, ""], ground: Float[ArrayLike, ""] = 0.0):
+        self.ke = scalar_parameter("PenaltyContact", "ke", ke, positive=True)
+        self.kd = scalar_parameter("PenaltyContact", "kd", kd)
+        self.kf = scalar_parameter("PenaltyContact", "kf", kf)
+        self.mu = scalar_parameter("PenaltyContact", "mu", mu)
+        if isinstance(ground, (bool, str)) or ground is None:
+            raise TypeError(f"PenaltyContact.ground must be a real number (a height in m), got {ground!r}")
+        g = ground if isinstance(ground, jax.core.Tracer) else np.asarray(ground, dtype=float)
+        if not isinstance(g, jax.core.Tracer) and (g.shape != () or not math.isfinite(float(g))):
+            raise ValueError(f"PenaltyContact.ground must be a finite scalar height in m, got {ground!r}")
+        self.ground = jnp.asarray(g, jax.dtypes.canonicalize_dtype(float))
+
+    def forces(self, depth, vn, vt):
+        """``(fn, ft)``: the normal and ground-parallel forces [N] at spots of depth ``depth`` [m] (positive below the
+        ground) moving with ``vn`` (along ``+z``) and ``vt`` (along ``+x``) [m/s]; zero where ``depth <= 0``. Any
+        shapes that broadcast."""
+        d = jnp.where(depth > 0, depth, 0.0)
+        fn = self.ke * d + self.kd * d * jnp.where(vn < 0, -vn, 0.0)
+        bound = self.mu * self.ke * d
+        ft = -jnp.clip(self.kf * vt, -bound, bound)
+        return fn, ft
+
+    def energy(self, depth):
+        """``1/2 ke d^2`` [J] for ``d = max(depth, 0)``, elementwise."""
+        d = jnp.where(depth > 0, depth, 0.0)
+        return 0.5 * self.ke * d * d
