@@ -63,6 +63,11 @@ def _check_substeps(substeps):
         raise ValueError(f"substeps must be an integer >= 1, got {substeps!r}")
 
 
+def _check_max_steps(max_steps):
+    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
+        raise ValueError(f"max_steps must be an integer >= 1 (solver steps per interval), got {max_steps!r}")
+
+
 def _check_steps(steps):
     if steps is not None and (isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1):
         raise ValueError(f"steps must be None or an integer >= 1 (the number of control intervals), got {steps!r}")
@@ -276,6 +281,7 @@ def simulate(
     _check_dt(dt)
     _check_substeps(substeps)
     _check_steps(steps)
+    _check_max_steps(max_steps)
     q0, qd0 = _real_array("q0", q0), _real_array("qd0", qd0)
     _check_state(chain, q0, qd0)
     arrays = not callable(controls) and controls is not None
@@ -375,12 +381,9 @@ def step(
     check_solver(solver)
     _check_dt(dt)
     _check_substeps(substeps)
+    _check_max_steps(max_steps)
     q, qd = _real_array("q", q), _real_array("qd", qd)
     u = None if u is None else _real_array("u", u)
-    if q.ndim < 1 or q.shape[-1] != chain.n or qd.shape != q.shape:
-        raise ValueError(f"q and qd must have the same shape (*batch, n = {chain.n}), got {q.shape} and {qd.shape}")
-    if u is not None and (u.ndim < 1 or u.shape[-1] != chain.m):
-        raise ValueError(f"u must have shape (*batch, m = {chain.m}) for this chain, got {u.shape}")
     dtype = _float_dtype(chain, q, qd, u)
     q, qd, u = q.astype(dtype), qd.astype(dtype), None if u is None else u.astype(dtype)
     return _interval(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps)(q, qd, u)

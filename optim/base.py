@@ -91,6 +91,8 @@ def config_from_dict(saved: dict) -> AlgorithmConfig:
     Raises:
         ValueError: naming an unknown algorithm or unknown fields, or a field out of range.
     """
+    if not isinstance(saved, dict):
+        raise TypeError(f"a saved config must be a dict (config_to_dict's), got {type(saved).__name__}")
     saved = dict(saved)
     name = saved.pop("algorithm", None)
     classes = {c.__name__: c for c in _subclasses(AlgorithmConfig)}

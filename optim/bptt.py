@@ -9,6 +9,7 @@ from typing import Any, Callable, NamedTuple
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optax
 from jax.flatten_util import ravel_pytree
 from jaxtyping import Array, Bool, Float, PRNGKeyArray
@@ -107,7 +108,7 @@ def apg_steps(task: AbstractTask, unravel: Callable[[Array], Any], params: Float
         An :class:`APGResult`.
 
     Raises:
-        ValueError: for ``max_grad_norm <= 0``.
+        ValueError: for ``max_grad_norm <= 0``, or ``steps`` or ``episodes`` < 1.
     """
     adam = optax.scale_by_adam()
 
@@ -137,6 +138,9 @@ def apg_steps(task: AbstractTask, unravel: Callable[[Array], Any], params: Float
 
     if max_grad_norm is not None and not max_grad_norm > 0:
         raise ValueError(f"apg_steps: max_grad_norm must be None or > 0, got {max_grad_norm!r}")
+    for name, value in (("steps", steps), ("episodes", episodes)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise ValueError(f"apg_steps: {name} must be an integer >= 1, got {value!r}")
     opt0 = adam.init(params) if opt_state is None else opt_state
     (p, opt, norm, ok), (returns, grad_norms) = jax.lax.scan(body, (params, opt0, normalizer, jnp.asarray(True)),
                                                              jnp.arange(steps))

@@ -81,9 +81,9 @@ def check_writable(path: str | os.PathLike, *, what: str = "checkpoint") -> None
         os.close(fd)
         os.unlink(probe)
     except OSError as err:
-        raise ValueError(f"{what} {path!r} cannot be written: its folder {folder!r} "
-                         f"{'is not a folder' if os.path.exists(folder) and not os.path.isdir(folder) else 'is not writable'}"
-                         f" ({err.strerror or err})") from None
+        why = "is not a folder" if os.path.exists(folder) and not os.path.isdir(folder) else "is not writable"
+        raise ValueError(f"{what} {path!r} cannot be written: its folder {folder!r} {why} ({err.strerror or err})") \
+            from None
 
 
 def write_text(path: str | os.PathLike, text: str) -> None:
@@ -127,6 +127,8 @@ def strict_json(obj):
 def _write_atomically(path, data: bytes, *, prefix: str) -> None:
     """Write ``data`` to a temporary file beside ``path``, flush and fsync it, then ``os.replace`` it over ``path``."""
     path = os.fspath(path)
+    if os.path.isdir(path):
+        raise IsADirectoryError(f"{path!r} is a folder; give a file path to write")
     folder = os.path.dirname(os.path.abspath(path))
     os.makedirs(folder, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=prefix, dir=folder)
@@ -189,8 +191,10 @@ def nan_leaves(tree) -> list[str]:
     """
     out = []
     for path, leaf in jax.tree_util.tree_flatten_with_path(tree)[0]:
+        if not jax.dtypes.issubdtype(getattr(leaf, "dtype", np.float64), np.inexact):  # integers, PRNG keys
+            continue
         a = np.asarray(leaf)
-        if np.issubdtype(a.dtype, np.inexact) and np.isnan(a).any():
+        if np.isnan(a).any():
             out.append(jax.tree_util.keystr(path))
     return out
 

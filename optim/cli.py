@@ -215,6 +215,8 @@ def prepare_run(out: str, config: AlgorithmConfig, *, resume: bool, overwrite: b
     """
     if resume and overwrite:
         raise SystemExit("error: --resume continues the run in --out and --overwrite replaces it: give one")
+    if not str(out).strip():
+        raise SystemExit("error: --out is empty; give the folder to write the run to")
     if os.path.exists(out) and not os.path.isdir(out):
         raise SystemExit(f"error: --out {out!r} is a file; give a folder")
     ckpt = os.path.join(out, "checkpoint.eqx")

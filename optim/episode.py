@@ -6,6 +6,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Bool, Float, PRNGKeyArray
 
 from lagrange.tasks import AbstractTask, balanced
@@ -87,5 +88,7 @@ def evaluate(task: AbstractTask, policy, normalizer: Normalizer | None, key: PRN
     Returns:
         ``(returns, balanced)``, each of shape ``(episodes,)`` (:func:`lagrange.tasks.balanced`).
     """
+    if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
+        raise ValueError(f"evaluate: episodes must be an integer >= 1, got {episodes!r}")
     eps = jax.vmap(lambda k: episode(task, policy, normalizer, k))(jax.random.split(key, episodes))
     return eps.ret, balanced(task, eps.q)

@@ -80,6 +80,12 @@ def identify(
     theta0 = jnp.asarray(theta0)
     states = jnp.asarray(states)
     chain0 = make_chain(theta0)
+    if not isinstance(chain0, Chain):
+        raise TypeError(f"identify: make_chain(theta) must return a lagrange.Chain, got {type(chain0).__name__}")
+    for name, data in (("states", states), ("controls", controls)):
+        if data is not None and not bool(jnp.all(jnp.isfinite(jnp.asarray(data)))):
+            raise ValueError(f"identify: {name} must be finite; the data hold a NaN or an infinity at "
+                             f"{np.argwhere(~np.isfinite(np.asarray(data)))[0].tolist()}")
     n, m = chain0.n, chain0.m
     if states.ndim != 3 or states.shape[-1] != 2 * n or states.shape[1] < 2:
         raise ValueError(f"identify: states must have shape (windows, T + 1 >= 2, 2 n = {2 * n}), got {states.shape}")
@@ -89,10 +95,15 @@ def identify(
             raise ValueError(f"identify: controls must have shape (windows, T, m) = {(windows, steps, m)}, got "
                              f"{None if controls is None else jnp.shape(controls)}")
         controls = jnp.asarray(controls, states.dtype)
-    if not float(dt) > 0:
-        raise ValueError(f"identify: dt must be > 0 seconds, got {dt!r}")
-    if isinstance(iterations, bool) or not isinstance(iterations, int) or iterations < 1:
+    try:
+        positive = not isinstance(dt, bool) and float(dt) > 0
+    except (TypeError, ValueError):
+        positive = False
+    if not positive:
+        raise ValueError(f"identify: dt must be a number > 0 seconds, got {dt!r}")
+    if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 1:
         raise ValueError(f"identify: iterations must be an integer >= 1, got {iterations!r}")
+    iterations = int(iterations)
     target = states[:, 1:]
     scale = jnp.std(target - states[:, :-1], axis=(0, 1))
     scale = jnp.where(scale > 0, scale, 1.0)

@@ -10,6 +10,7 @@ import time
 from typing import Any, Callable, NamedTuple
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 from jaxtyping import PRNGKeyArray
 
@@ -129,6 +130,10 @@ def train(config: AlgorithmConfig, task, policy, key: PRNGKeyArray, *, checkpoin
 
     if eval_every is not None and (isinstance(eval_every, bool) or not isinstance(eval_every, int) or eval_every < 1):
         raise ValueError(f"train: eval_every must be None or an integer >= 1, got {eval_every!r}")
+    if isinstance(eval_episodes, bool) or not isinstance(eval_episodes, int) or eval_episodes < 1:
+        raise ValueError(f"train: eval_episodes must be an integer >= 1, got {eval_episodes!r}")
+    key = _raw_key(key)
+    _check_policy(task, policy)
     if checkpoint is not None:  # before any work: a path that cannot be written would fail after the first iteration
         ckpt.check_writable(checkpoint)
     trainer = config.make_trainer(task, policy, objective=objective)
@@ -190,6 +195,32 @@ def train(config: AlgorithmConfig, task, policy, key: PRNGKeyArray, *, checkpoin
         bar.update(1)
     bar.close()
     return TrainResult(state, history, curve, trainer)
+
+
+def _raw_key(key):
+    """One PRNG key as raw ``(2,)`` uint32 key data (a typed key's data: what a checkpoint can store)."""
+    if jax.dtypes.issubdtype(getattr(key, "dtype", np.float64), jax.dtypes.prng_key) and np.shape(key) == ():
+        key = jax.random.key_data(key)
+    if getattr(key, "dtype", None) != np.uint32 or np.shape(key) != (2,):
+        raise ValueError(f"train: key must be one PRNG key (jax.random.PRNGKey(seed) or jax.random.key(seed)), got "
+                         f"{key!r:.80}")
+    return key
+
+
+def _check_policy(task, policy) -> None:
+    """The policy takes the task's observation and returns its action: checked on shapes (nothing computed)."""
+    name = type(policy).__name__
+    try:
+        obs = jax.ShapeDtypeStruct((task.observation_size,), jnp.result_type(float))
+        action, _ = jax.eval_shape(lambda o: policy(o, policy.initial_state(), True), obs)
+    except Exception as err:  # noqa: BLE001 -- any failure here is a policy that does not fit the task
+        why = str(err).splitlines()[0].rstrip(".") if str(err) else type(err).__name__
+        raise ValueError(f"train: the policy ({name}) does not take the task's observation of shape "
+                         f"({task.observation_size},): {why}. Build it for the task: {name}.for_task(task, ...)") \
+            from None
+    if action.shape != (task.action_size,):
+        raise ValueError(f"train: the policy ({name}) returns actions of shape {action.shape}, the task takes "
+                         f"({task.action_size},). Build it for the task: {name}.for_task(task, ...)")
 
 
 def _host_metrics(metrics: dict) -> dict:

@@ -18,9 +18,16 @@ import numpy as np
 from jax.typing import DTypeLike
 from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
-from policies.base import AbstractPolicy
+from policies.base import AbstractPolicy, check_size
 
 __all__ = ["Actor", "Critic"]
+
+
+def _units(cls: str, units) -> tuple[int, ...]:
+    """The hidden widths as a tuple of integers >= 1, or a ``ValueError`` naming ``units``."""
+    if isinstance(units, (str, bytes)) or not isinstance(units, Sequence):
+        raise ValueError(f"{cls} units must be a sequence of integers >= 1 (the hidden widths), got {units!r}")
+    return tuple(check_size(cls, f"units[{i}]", u) for i, u in enumerate(units))
 
 
 class _MLP(eqx.Module):
@@ -81,7 +88,12 @@ class Actor(AbstractPolicy):
 
     def __init__(self, obs_size: int, action_size: int, units: Sequence[int] = (64, 64), init_log_std: float = -1.0,
                  *, key: PRNGKeyArray, dtype: DTypeLike | None = None):
-        self.mu = _MLP(obs_size, action_size, tuple(units), orthogonal_gain=None, key=key, dtype=dtype)
+        obs_size = check_size("Actor", "obs_size", obs_size)
+        action_size = check_size("Actor", "action_size", action_size)
+        units = _units("Actor", units)
+        if isinstance(init_log_std, bool) or not np.isfinite(init_log_std):
+            raise ValueError(f"Actor init_log_std must be a finite number, got {init_log_std!r}")
+        self.mu = _MLP(obs_size, action_size, units, orthogonal_gain=None, key=key, dtype=dtype)
         self.log_std = jnp.full(action_size, init_log_std, self.mu.out.weight.dtype)
         self.init_log_std = float(init_log_std)
         self.hidden_size = 0
@@ -155,7 +167,8 @@ class Critic(eqx.Module):
 
     def __init__(self, obs_size: int, units: Sequence[int] = (64, 64), *, key: PRNGKeyArray,
                  dtype: DTypeLike | None = None):
-        self.net = _MLP(obs_size, 1, tuple(units), orthogonal_gain=float(np.sqrt(2.0)), key=key, dtype=dtype)
+        obs_size, units = check_size("Critic", "obs_size", obs_size), _units("Critic", units)
+        self.net = _MLP(obs_size, 1, units, orthogonal_gain=float(np.sqrt(2.0)), key=key, dtype=dtype)
 
     def __call__(self, obs: Float[ArrayLike, " obs_size"]) -> Float[Array, ""]:
         """The value of an observation.

@@ -5,11 +5,29 @@ import abc
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from equinox import AbstractVar
 from jax.typing import DTypeLike
 from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
-__all__ = ["AbstractPolicy"]
+__all__ = ["AbstractPolicy", "check_size"]
+
+
+def check_size(cls: str, name: str, value, minimum: int = 1) -> int:
+    """Check a layer size or count and return it as an ``int``.
+
+    Args:
+        cls: the class name the error gives.
+        name: the argument's name.
+        value: an integer (a NumPy integer too; not a bool).
+        minimum: the smallest allowed.
+
+    Raises:
+        ValueError: ``<cls> <name> must be an integer >= <minimum>, got <value>``.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise ValueError(f"{cls} {name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
 
 
 class AbstractPolicy(eqx.Module):
@@ -57,8 +75,12 @@ class AbstractPolicy(eqx.Module):
         return jnp.zeros(self.hidden_size, self.dtype)
 
     @abc.abstractmethod
-    def __call__(self, obs: Float[ArrayLike, " obs_size"], hidden: Float[Array, " hidden_size"],
-                 reset: Bool[ArrayLike, ""] = False) -> tuple[Float[Array, " action_size"], Float[Array, " hidden_size"]]:
+    def __call__(
+        self,
+        obs: Float[ArrayLike, " obs_size"],
+        hidden: Float[Array, " hidden_size"],
+        reset: Bool[ArrayLike, ""] = False,
+    ) -> tuple[Float[Array, " action_size"], Float[Array, " hidden_size"]]:
         """One step of the policy.
 
         Args:

@@ -10,7 +10,7 @@ import jax.numpy as jnp
 from jax.typing import DTypeLike
 from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
-from policies.base import AbstractPolicy
+from policies.base import AbstractPolicy, check_size
 
 __all__ = ["GRUPolicy"]
 
@@ -43,9 +43,8 @@ class GRUPolicy(AbstractPolicy):
 
     def __init__(self, obs_size: int, action_size: int, width: int = 16, *, key: PRNGKeyArray,
                  dtype: DTypeLike | None = None):
-        for name, v in (("obs_size", obs_size), ("action_size", action_size), ("width", width)):
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise ValueError(f"GRUPolicy {name} must be an integer >= 1, got {v!r}")
+        obs_size, action_size, width = (check_size("GRUPolicy", name, v) for name, v in (
+            ("obs_size", obs_size), ("action_size", action_size), ("width", width)))
         k = jax.random.split(key, 5)
         self.embed = eqx.nn.Linear(obs_size, width, dtype=dtype, key=k[0])
         self.cell = eqx.nn.GRUCell(width, obs_size, dtype=dtype, key=k[1])

@@ -10,7 +10,7 @@ import jax.numpy as jnp
 from jax.typing import DTypeLike
 from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
-from policies.base import AbstractPolicy
+from policies.base import AbstractPolicy, check_size
 
 __all__ = ["MLPPolicy"]
 
@@ -37,11 +37,9 @@ class MLPPolicy(AbstractPolicy):
 
     def __init__(self, obs_size: int, action_size: int, width: int = 64, depth: int = 2, *, key: PRNGKeyArray,
                  dtype: DTypeLike | None = None):
-        for name, v in (("obs_size", obs_size), ("action_size", action_size), ("width", width)):
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise ValueError(f"MLPPolicy {name} must be an integer >= 1, got {v!r}")
-        if isinstance(depth, bool) or not isinstance(depth, int) or depth < 0:
-            raise ValueError(f"MLPPolicy depth must be an integer >= 0, got {depth!r}")
+        obs_size, action_size, width = (check_size("MLPPolicy", name, v) for name, v in (
+            ("obs_size", obs_size), ("action_size", action_size), ("width", width)))
+        depth = check_size("MLPPolicy", "depth", depth, 0)
         self.mlp = eqx.nn.MLP(obs_size, action_size, width, depth, activation=jax.nn.relu,
                               final_activation=jnp.tanh, dtype=dtype, key=key)
         self.hidden_size = 0

@@ -8,6 +8,17 @@ import jax.numpy as jnp
 from jax.typing import DTypeLike
 from jaxtyping import Array, ArrayLike, Float
 
+from policies.base import check_size
+
+
+def _observations(norm, obs) -> Array:
+    """``obs`` as an array whose last axis is the normaliser's size, or a ``ValueError`` naming the shapes."""
+    obs = jnp.asarray(obs)
+    if obs.ndim < 1 or obs.shape[-1] != norm.mean.shape[0]:
+        raise ValueError(f"{type(norm).__name__}: observations must have shape (*batch, size = {norm.mean.shape[0]}), "
+                         f"got {obs.shape}")
+    return obs
+
 
 class Normalizer(eqx.Module):
     """Running mean and variance of observations (size,), applied as ``clip((x - mean) / std, -clip, clip)``.
@@ -38,10 +49,10 @@ class Normalizer(eqx.Module):
             clip: bound on the normalised output [standard deviations], > 0.
             dtype: floating dtype of the statistics; ``None`` for JAX's default.
         """
-        if size < 1:
-            raise ValueError(f"Normalizer size must be >= 1, got {size}")
-        if not clip > 0:
-            raise ValueError(f"Normalizer clip must be > 0, got {clip}")
+        size = check_size("Normalizer", "size", size)
+        if isinstance(clip, bool) or not clip > 0:
+            raise ValueError(f"Normalizer clip must be a number > 0 (standard deviations; inf: no clipping), got "
+                             f"{clip!r}")
         dtype = dtype or jnp.zeros(()).dtype
         return cls(jnp.zeros(size, dtype), jnp.ones(size, dtype), jnp.zeros((), dtype), clip=clip)
 
@@ -54,7 +65,8 @@ class Normalizer(eqx.Module):
         Returns:
             The updated normaliser (``self`` is unchanged).
         """
-        obs = jax.lax.stop_gradient(jnp.asarray(obs)).reshape(-1, self.mean.shape[0]).astype(self.mean.dtype)
+        obs = _observations(self, obs)
+        obs = jax.lax.stop_gradient(obs).reshape(-1, self.mean.shape[0]).astype(self.mean.dtype)
         n = jnp.asarray(obs.shape[0], self.mean.dtype)
         bmean = jnp.mean(obs, axis=0)
         bvar = jnp.var(obs, axis=0)
@@ -74,7 +86,7 @@ class Normalizer(eqx.Module):
         Returns:
             Shape ``(*batch, size)``, dimensionless (standard deviations).
         """
-        z = (obs - self.mean) / jnp.sqrt(self.var + self.eps)
+        z = (_observations(self, obs) - self.mean) / jnp.sqrt(self.var + self.eps)
         return jnp.clip(z, -self.clip, self.clip)
 
 
@@ -105,8 +117,7 @@ class BraxNormalizer(eqx.Module):
             size: length of the observation vector, >= 1.
             dtype: floating dtype of the statistics; ``None`` for JAX's default.
         """
-        if size < 1:
-            raise ValueError(f"BraxNormalizer size must be >= 1, got {size}")
+        size = check_size("BraxNormalizer", "size", size)
         dtype = dtype or jnp.zeros(()).dtype
         return cls(jnp.zeros((), dtype), jnp.zeros(size, dtype), jnp.ones(size, dtype))
 
@@ -119,7 +130,7 @@ class BraxNormalizer(eqx.Module):
         Returns:
             The updated normaliser (``self`` is unchanged).
         """
-        obs = jax.lax.stop_gradient(jnp.asarray(obs)).reshape(-1, self.mean.shape[0]).astype(self.mean.dtype)
+        obs = jax.lax.stop_gradient(_observations(self, obs)).reshape(-1, self.mean.shape[0]).astype(self.mean.dtype)
         total = self.steps + obs.shape[0]
         to_old = obs - self.mean
         mean = self.mean + jnp.sum(to_old / total, axis=0)
@@ -136,4 +147,4 @@ class BraxNormalizer(eqx.Module):
             Shape ``(*batch, size)``, dimensionless.
         """
         var = jnp.clip(self.m2 / (self.steps + 1.0), 1e-6, 1e6)
-        return jnp.clip((obs - self.mean) / jnp.sqrt(var), -5.0, 5.0)
+        return jnp.clip((_observations(self, obs) - self.mean) / jnp.sqrt(var), -5.0, 5.0)

@@ -57,7 +57,8 @@ class BraxEnv(Env):
     limit as a truncation and lets PPO bootstrap there; with the default the horizon is a true end of
     the (finite-horizon) task and nothing is bootstrapped beyond it.
 
-    Observations, rewards and ``done`` are in the dtype of the chain's parameters.
+    Observations, rewards and ``done`` are in the dtype of the chain's parameters. Inside ``jit`` nothing can be
+    raised: a NaN action, or a state that blows up, gives NaN observations and rewards, which a trainer must check.
 
     Usage: ``env = BraxEnv(Acrobot.rods())``, then ``env.reset(key)`` and ``env.step(state, action)``
     (jit and vmap them as any Brax environment), or pass ``environment=env`` to a Brax trainer inside
@@ -69,6 +70,8 @@ class BraxEnv(Env):
     """
 
     def __init__(self, task: AbstractTask, *, terminate_at_horizon: bool = True):
+        if not isinstance(task, AbstractTask):
+            raise TypeError(f"BraxEnv task must be a task of lagrange.tasks (an AbstractTask), got {task!r:.80}")
         if not isinstance(terminate_at_horizon, bool):
             raise TypeError(f"BraxEnv terminate_at_horizon must be True or False, got {terminate_at_horizon!r}")
         self.task = task

@@ -55,6 +55,8 @@ class GymEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
 
     def __init__(self, task: AbstractTask, *, render_mode: str | None = None, frame_size: tuple[int, int] = (320, 240)):
+        if not isinstance(task, AbstractTask):
+            raise TypeError(f"GymEnv task must be a task of lagrange.tasks (an AbstractTask), got {task!r:.80}")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"GymEnv render_mode must be None or one of {self.metadata['render_modes']}, "
                              f"got {render_mode!r}")

@@ -31,6 +31,12 @@ def balanced(task: AbstractTask, q: Float[ArrayLike, "*batch T n"], *, fraction:
         A boolean array of the batch shape.
     """
     q = jnp.asarray(q)
+    if q.ndim < 2:
+        raise ValueError(f"balanced: q must have shape (..., T, n = {task.chain.n}), a trajectory, got {q.shape}")
+    for name, value, ok in (("fraction", fraction, lambda v: 0 < v <= 1), ("tolerance", tolerance, lambda v: v > 0)):
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or not ok(value):
+            raise ValueError(f"balanced: {name} must be a number in {'(0, 1]' if name == 'fraction' else '(0, inf)'}"
+                             f", got {value!r}")
     T = q.shape[-2]
     start = T - max(1, int(np.ceil(fraction * T)))
     return jnp.all(upright_error(task, q[..., start:, :]) <= tolerance, axis=-1)
@@ -76,4 +82,7 @@ def upright_error(task: AbstractTask, q: Float[ArrayLike, "*batch n"]) -> Float[
     Returns:
         Shape ``(*batch,)``.
     """
-    return jnp.max(jnp.abs(pole_orientations(task, jnp.asarray(q))), axis=-1)
+    q = jnp.asarray(q)
+    if q.ndim < 1 or q.shape[-1] != task.chain.n:
+        raise ValueError(f"upright_error: q must have shape (..., n = {task.chain.n}), got {q.shape}")
+    return jnp.max(jnp.abs(pole_orientations(task, q)), axis=-1)

@@ -11,6 +11,7 @@ chain's gear. A cart, where there is one, is ``q[0]``; the poles follow it (``fi
 """
 
 import abc
+import math
 from typing import NamedTuple
 
 import diffrax
@@ -22,10 +23,10 @@ from jaxtyping import Array, ArrayLike, Float, PRNGKeyArray
 
 from lagrange.chain import Chain
 from lagrange.integrate import step as _step
-from lagrange.solvers import SemiImplicitEuler, SymplecticEuler
+from lagrange.solvers import SemiImplicitEuler, SymplecticEuler, check_solver
 
 __all__ = ["TaskState", "AbstractTask", "TaskSolver", "control_step", "wrap", "pole_orientations",
-           "check_schedule", "check_joints"]
+           "check_schedule", "check_joints", "check_number", "check_state", "check_chain"]
 
 TaskSolver = diffrax.AbstractSolver | SemiImplicitEuler | SymplecticEuler
 """The solvers a task steps with (:mod:`lagrange.solvers`; any explicit diffrax Runge-Kutta solver)."""
@@ -135,8 +136,9 @@ class AbstractTask(eqx.Module):
         """Pole angles [rad], wrapped, 0 = first pole upright / later links straight, shape ``(n_links,)``.
 
         Args:
-            state: the state.
+            state: one state (``jax.vmap`` over a batch).
         """
+        check_state(self, state)
         rel = state.q[self.first_pole:]
         offset = jnp.zeros_like(rel).at[0].set(jnp.pi)
         return wrap(rel - offset)
@@ -145,16 +147,18 @@ class AbstractTask(eqx.Module):
         """Absolute pole orientations [rad], wrapped, 0 = pointing straight up, shape ``(n_links,)``.
 
         Args:
-            state: the state.
+            state: one state (``jax.vmap`` over a batch).
         """
+        check_state(self, state)
         return pole_orientations(self, state.q)
 
     def angular_velocities(self, state: TaskState) -> Float[Array, " n_links"]:
         """Joint velocities of the poles [rad/s], relative as the angles are, shape ``(n_links,)``.
 
         Args:
-            state: the state.
+            state: one state (``jax.vmap`` over a batch).
         """
+        check_state(self, state)
         return state.qd[self.first_pole:]
 
 
@@ -174,10 +178,8 @@ def control_step(task: AbstractTask, state: TaskState, action: Float[ArrayLike, 
         ValueError: for a state or an action of another shape (a batch: ``jax.vmap`` the step over it).
         TypeError: for a boolean or complex action.
     """
-    n, m, cls = task.chain.n, task.chain.m, type(task).__name__
-    if jnp.shape(state.q) != (n,) or jnp.shape(state.qd) != (n,):
-        raise ValueError(f"{cls}.step: state.q and state.qd must have shape (n,) = ({n},), got {jnp.shape(state.q)} "
-                         f"and {jnp.shape(state.qd)}; jax.vmap the step over a batch of states")
+    m, cls = task.chain.m, type(task).__name__
+    check_state(task, state, "step")
     if jnp.shape(action) != (m,):
         raise ValueError(f"{cls}.step: action must have shape (m,) = ({m},), one entry per actuated joint, got "
                          f"{jnp.shape(action)}; jax.vmap the step over a batch of actions")
@@ -187,6 +189,39 @@ def control_step(task: AbstractTask, state: TaskState, action: Float[ArrayLike, 
     a = jnp.clip(action, -1.0, 1.0)
     q, qd = _step(task.chain, state.q, state.qd, a, task.dt, task.solver, task.substeps)
     return TaskState(q, qd)
+
+
+def check_state(task: AbstractTask, state: TaskState, method: str | None = None) -> None:
+    """Check that ``state`` is one :class:`TaskState` of the task's chain (a batch goes through ``jax.vmap``).
+
+    Args:
+        task: the task.
+        state: the state.
+        method: the method the error names, if any.
+
+    Raises:
+        TypeError: for something else than a ``TaskState``.
+        ValueError: for ``q`` or ``qd`` of another shape than ``(n,)``.
+    """
+    where, n = type(task).__name__ + (f".{method}" if method else ""), task.chain.n
+    if not isinstance(state, TaskState):
+        raise TypeError(f"{where}: state must be a lagrange.tasks.TaskState(q, qd), got {type(state).__name__}")
+    if jnp.shape(state.q) != (n,) or jnp.shape(state.qd) != (n,):
+        raise ValueError(f"{where}: state.q and state.qd must have shape (n,) = ({n},), got {jnp.shape(state.q)} and "
+                         f"{jnp.shape(state.qd)}; jax.vmap over a batch of states")
+
+
+def check_chain(task: AbstractTask) -> None:
+    """Check that a task's ``chain`` is a :class:`lagrange.Chain`.
+
+    Args:
+        task: the task.
+
+    Raises:
+        TypeError: naming the field and what it got.
+    """
+    if not isinstance(task.chain, Chain):
+        raise TypeError(f"{type(task).__name__}.chain must be a lagrange.Chain, got {type(task.chain).__name__}")
 
 
 def pole_orientations(task: AbstractTask, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch n_links"]:
@@ -213,12 +248,37 @@ def check_schedule(task: AbstractTask) -> None:
         ValueError: naming the field that is out of range (``horizon``, ``substeps``: integers >= 1; ``dt`` > 0).
     """
     cls = type(task).__name__
+    check_chain(task)
     for field in ("horizon", "substeps"):
         v = getattr(task, field)
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
             raise ValueError(f"{cls}.{field} must be an integer >= 1, got {v!r}")
-    if not task.dt > 0:
-        raise ValueError(f"{cls}.dt must be > 0 (seconds), got {task.dt!r}")
+    check_number(task, "dt", 0.0, open_low=True)
+    try:
+        check_solver(task.solver)
+    except TypeError as err:
+        raise TypeError(f"{cls}.{err}") from None
+
+
+def check_number(task: AbstractTask, field: str, low: float, high: float = math.inf, *,
+                 open_low: bool = False) -> None:
+    """Check that a task's ``field`` is a real number (not a bool or a string) in ``[low, high]``.
+
+    Args:
+        task: the task.
+        field: the field's name.
+        low: the lower end.
+        high: the upper end.
+        open_low: exclude ``low`` itself.
+
+    Raises:
+        ValueError: naming ``<class>.<field>`` and the range.
+    """
+    v = getattr(task, field)
+    ok = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+    if not ok or not (v > low if open_low else v >= low) or not v <= high:
+        ends = ("(" if open_low else "[") + f"{low:g}, {high:g}" + ("]" if high < math.inf else ")")
+        raise ValueError(f"{type(task).__name__}.{field} must be a number in {ends}, got {v!r}")
 
 
 def check_joints(task: AbstractTask, joints: tuple[str, ...]) -> None:
@@ -232,6 +292,7 @@ def check_joints(task: AbstractTask, joints: tuple[str, ...]) -> None:
         ValueError: naming ``chain`` and the joints it must have, or that it has no actuated joint.
     """
     cls = type(task).__name__
+    check_chain(task)
     if tuple(task.chain.joints) != joints:
         raise ValueError(f"{cls}.chain must have the joints {joints}, got {task.chain.joints}")
     if task.chain.m < 1:

@@ -32,7 +32,8 @@ from jaxtyping import Array, ArrayLike, Float, PRNGKeyArray
 from lagrange import systems
 from lagrange.chain import Chain
 from lagrange.solvers import RK4
-from lagrange.tasks.base import AbstractTask, TaskSolver, TaskState, check_joints, check_schedule, wrap
+from lagrange.tasks.base import (AbstractTask, TaskSolver, TaskState, check_joints, check_number, check_schedule,
+                                 check_state, wrap)
 
 __all__ = ["DiffRLCartpole", "POLE_INERTIA"]
 
@@ -79,9 +80,8 @@ class DiffRLCartpole(AbstractTask):
     def __check_init__(self):
         check_joints(self, ("prismatic", "revolute"))
         check_schedule(self)
-        for field in ("noise_q", "noise_qd"):
-            if not getattr(self, field) >= 0:
-                raise ValueError(f"DiffRLCartpole.{field} must be >= 0, got {getattr(self, field)!r}")
+        check_number(self, "noise_q", 0.0)
+        check_number(self, "noise_qd", 0.0)
 
     @classmethod
     def diffrl(cls, *, cart_mass: float = 50.0, pole_mass: float = 2.5, pole_length: float = 1.0,
@@ -133,6 +133,7 @@ class DiffRLCartpole(AbstractTask):
         Args:
             state: the state.
         """
+        check_state(self, state, "observe")
         th = state.q[1:] - jnp.pi
         return jnp.concatenate([state.q[:1], state.qd[:1], jnp.sin(th), jnp.cos(th), state.qd[1:]])
 
@@ -145,6 +146,7 @@ class DiffRLCartpole(AbstractTask):
             next_state: the state the reward is of.
         """
         del state, action
+        check_state(self, next_state, "reward")
         q, qd = next_state.q, next_state.qd
         th = wrap(q[1] - jnp.pi)
         return -(th**2 + 0.1 * qd[1] ** 2 + 0.05 * q[0] ** 2 + 0.1 * qd[0] ** 2)

@@ -50,7 +50,8 @@ from jaxtyping import Array, ArrayLike, Float, PRNGKeyArray
 from lagrange import systems
 from lagrange.chain import Chain
 from lagrange.solvers import RK4
-from lagrange.tasks.base import AbstractTask, TaskSolver, TaskState, check_joints, check_schedule
+from lagrange.tasks.base import (AbstractTask, TaskSolver, TaskState, check_chain, check_joints, check_number,
+                                 check_schedule)
 
 __all__ = ["AbstractSwingup", "Acrobot", "Cartpole", "DoubleCartpole", "ChainSwingup", "PAPER_TASKS", "BODY_SETS"]
 
@@ -95,10 +96,10 @@ class AbstractSwingup(AbstractTask):
     def __check_init__(self):
         cls = type(self).__name__
         check_schedule(self)
-        if not self.noise >= 0:
-            raise ValueError(f"{cls}.noise must be >= 0, got {self.noise!r}")
-        if not 0 <= float(self.upright) <= 1:
-            raise ValueError(f"{cls}.upright must be a probability in [0, 1], got {self.upright!r}")
+        check_number(self, "noise", 0.0)
+        check_number(self, "upright", 0.0, 1.0)
+        if not isinstance(getattr(self, "trig", False), bool):
+            raise ValueError(f"{cls}.trig must be True or False, got {self.trig!r}")
         if self.bodies is not None and self.bodies not in BODY_SETS:
             raise ValueError(f"{cls}.bodies must be None or one of {list(BODY_SETS)}, got {self.bodies!r}")
         if self.starts is not None and not isinstance(self.starts, jax.core.Tracer):
@@ -410,6 +411,7 @@ class ChainSwingup(AbstractSwingup):
     name: ClassVar[str] = "chain"
 
     def __check_init__(self):
+        check_chain(self)
         if any(j != "revolute" for j in self.chain.joints):
             raise ValueError(f"ChainSwingup needs revolute joints only, got joints={self.chain.joints}")
         if self.chain.m < 1:

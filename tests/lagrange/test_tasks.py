@@ -49,7 +49,7 @@ def test_upright_fraction_of_starts():
         np.testing.assert_allclose(mixed.q[:, i] - paper.q[:, i], np.pi * up, atol=1e-6)
         np.testing.assert_allclose(always.q[:, i] - paper.q[:, i], np.pi, atol=1e-6)
         assert bool(jnp.all(jnp.abs(jax.vmap(task.angles)(always)[:, 0]) <= 0.01 + 1e-6))
-    with pytest.raises(ValueError, match=r"Acrobot.upright must be a probability in \[0, 1\], got 1.5"):
+    with pytest.raises(ValueError, match=r"Acrobot.upright must be a number in \[0, 1\], got 1.5"):
         dataclasses.replace(Acrobot.rods(), upright=1.5)
     with pytest.raises(ValueError, match="upright"):
         Acrobot.rods(upright=-0.1)
@@ -393,3 +393,38 @@ def test_step_takes_one_state_and_one_action():
     one = jax.jit(lambda s, a: task.step(s, a))
     np.testing.assert_allclose(batch.q[1], one(s, jnp.array([1.0])).q, rtol=1e-14, atol=1e-15)
     assert states_equal(one(s, jnp.array([1])), one(s, jnp.array([1.0])))
+
+
+
+def test_fields_and_states_of_the_wrong_kind_are_refused_by_name():
+    """A bool or a string where a number belongs (``dt=True`` was one second), a string for ``trig``, a solver by
+    name, no chain, and a batch or a tuple where one ``TaskState`` belongs (``observe`` and ``reward`` once read a
+    batch silently); ``balanced`` and ``upright_error`` check their arguments."""
+    refused = [
+        (lambda: Acrobot.rods(dt=True), ValueError, r"Acrobot\.dt must be a number in \(0, inf\), got True"),
+        (lambda: Acrobot.rods(dt="0.01"), ValueError, r"Acrobot\.dt must be a number in \(0, inf\), got '0\.01'"),
+        (lambda: Acrobot.rods(upright="0.5"), ValueError, r"Acrobot\.upright must be a number in \[0, 1\]"),
+        (lambda: Cartpole.rods(noise=True), ValueError, r"Cartpole\.noise must be a number in \[0, inf\)"),
+        (lambda: Acrobot.rods(trig="yes"), ValueError, r"Acrobot\.trig must be True or False, got 'yes'"),
+        (lambda: Acrobot.rods(solver="rk4"), TypeError, r"Acrobot\.solver must be one of lagrange\.RK4\(\)"),
+        (lambda: DiffRLCartpole.diffrl(noise_q=-1.0), ValueError, r"DiffRLCartpole\.noise_q must be a number in \[0"),
+        (lambda: Acrobot(None), TypeError, r"Acrobot\.chain must be a lagrange\.Chain, got NoneType"),
+        (lambda: ChainSwingup("chain"), TypeError, r"ChainSwingup\.chain must be a lagrange\.Chain, got str"),
+    ]
+    task = Acrobot.rods()
+    s = task.reset(jax.random.PRNGKey(0))
+    batch = TaskState(jnp.stack([s.q, s.q]), jnp.stack([s.qd, s.qd]))
+    diffrl = DiffRLCartpole.diffrl()
+    refused += [
+        (lambda: task.observe(batch), ValueError, r"Acrobot: state\.q and state\.qd must have shape \(n,\) = \(2,\)"),
+        (lambda: task.reward(s, jnp.zeros(1), batch), ValueError, r"got \(2, 2\) and \(2, 2\); jax\.vmap"),
+        (lambda: diffrl.observe(batch), ValueError, r"DiffRLCartpole\.observe: state\.q and state\.qd must have"),
+        (lambda: task.step((s.q, s.qd), jnp.zeros(1)), TypeError, r"Acrobot\.step: state must be a .*TaskState"),
+        (lambda: tasks.balanced(task, jnp.zeros((10, 2)), fraction=0.0), ValueError, r"fraction must be a number in"),
+        (lambda: tasks.balanced(task, jnp.zeros((10, 2)), tolerance=-1.0), ValueError, r"tolerance must be a number"),
+        (lambda: tasks.balanced(task, jnp.zeros(2)), ValueError, r"balanced: q must have shape \(\.\.\., T, n = 2\)"),
+        (lambda: tasks.upright_error(task, jnp.zeros((5, 3))), ValueError, r"q must have shape \(\.\.\., n = 2\)"),
+    ]
+    for make, error, message in refused:
+        with pytest.raises(error, match=message):
+            make()

@@ -35,6 +35,8 @@ def test_config_from_dict_names_what_it_does_not_know():
         config_from_dict(dict(saved, later_field=1))
     with pytest.raises(ValueError, match=r"APGConfig\.episodes"):  # the config's own checks run
         config_from_dict(dict(saved, episodes=0))
+    with pytest.raises(TypeError, match=r"a saved config must be a dict \(config_to_dict's\), got list"):
+        config_from_dict([saved])
 
 
 def test_algorithm_config_is_abstract():

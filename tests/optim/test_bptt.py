@@ -112,6 +112,9 @@ def test_max_grad_norm_clips_the_gradient_adam_sees(problem):
     with pytest.raises(ValueError, match="max_grad_norm"):
         optim.apg_steps(None, None, params, None, None, steps=1, episodes=1, learning_rate=1.0,
                         max_grad_norm=0.0)
+    for name in ("steps", "episodes"):  # zero steps was a silent no-op, zero episodes a NaN return
+        with pytest.raises(ValueError, match=rf"apg_steps: {name} must be an integer >= 1, got 0"):
+            optim.apg_steps(None, None, params, None, None, **{"steps": 1, "episodes": 1, name: 0}, learning_rate=1.0)
 
 
 def test_the_objective_changes_the_gradient(problem):

@@ -51,6 +51,8 @@ def test_save_and_load_round_trip(tmp_path):
         checkpoint.load(path, state, config=dict(cfg, episodes=3))
     checkpoint.write_json(tmp_path / "sub" / "results.json", {"return": 1.5})  # creates the folder, atomically
     assert json.loads((tmp_path / "sub" / "results.json").read_text()) == {"return": 1.5}
+    with pytest.raises(IsADirectoryError, match=r"is a folder; give a file path to write"):
+        checkpoint.save(tmp_path / "sub", state, config=cfg)
 
 
 CFG, TASK, POLICY, _ = small_problem("CEAPGConfig")  # the short_run fixture's CE-APG run: 2 iterations

@@ -52,14 +52,15 @@ def test_parser_defaults_and_bodies():
 
 @pytest.mark.parametrize("flags, message", [(["--iterations", "0"], "--iterations must be >= 1, got 0"),
                                             (["--cpu-devices", "0"], "--cpu-devices must be >= 1, got 0"),
-                                            (["--resume", "--overwrite"], "--resume continues .* give one")])
+                                            (["--resume", "--overwrite"], "--resume continues .* give one"),
+                                            (["--out", ""], "--out is empty; give the folder")])
 def test_bad_flags_exit_with_one_line(tmp_path, flags, message):
     with pytest.raises(SystemExit, match=message):
         main(tmp_path / "run", *flags)
     assert not (tmp_path / "run").exists()  # refused before anything was written
     (tmp_path / "file").write_text("x")
     for out, message in ((tmp_path / "file", r"--out '.*file' is a file; give a folder"),
-                         (tmp_path / "file" / "run", r"--out '.*checkpoint.eqx' cannot be written: its folder .* is not")):
+                         (tmp_path / "file" / "run", r"--out '.*checkpoint.eqx' cannot be written: its folder .* is")):
         with pytest.raises(SystemExit, match=message):
             main(out, "--out", str(out))
     with pytest.raises(ValueError, match="tasks must name at least one body set"):

@@ -7,6 +7,7 @@ episodes from split keys with ``lagrange.tasks.balanced`` of each."""
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import optim
 from lagrange.tasks import TaskState, balanced
@@ -105,3 +106,5 @@ def test_evaluate_is_the_batch_of_episodes():
     zero = jax.tree_util.tree_map(lambda x: jnp.zeros_like(x) if isinstance(x, jax.Array) else x, zero)
     _, bal_up = optim.evaluate(up, zero, None, key, 3)
     assert bool(jnp.all(bal_up)) and not bool(jnp.any(bal))
+    with pytest.raises(ValueError, match=r"evaluate: episodes must be an integer >= 1, got 0"):  # was a NaN mean
+        optim.evaluate(task, policy, None, key, 0)

@@ -45,10 +45,17 @@ def test_argument_checks():
         identify(_acrobot, jnp.zeros(4), states[..., :3], controls, 0.01)
     with pytest.raises(ValueError, match=r"controls must have shape \(windows, T, m\) = \(2, 3, 1\)"):
         identify(_acrobot, jnp.zeros(4), states, None, 0.01)
-    with pytest.raises(ValueError, match="dt must be > 0"):
+    with pytest.raises(ValueError, match=r"dt must be a number > 0 seconds, got 0\.0"):
         identify(_acrobot, jnp.zeros(4), states, controls, 0.0)
     with pytest.raises(ValueError, match="iterations must be an integer >= 1"):
         identify(_acrobot, jnp.zeros(4), states, controls, 0.01, iterations=0)
+    with pytest.raises(ValueError, match=r"dt must be a number > 0 seconds, got 'fast'"):
+        identify(_acrobot, jnp.zeros(4), states, controls, "fast")
+    with pytest.raises(ValueError, match=r"states must be finite; the data hold a NaN or an infinity at \[1, 2, 0\]"):
+        identify(_acrobot, jnp.zeros(4), states.copy() + np.where(np.arange(states.size).reshape(states.shape)
+                                                                  == (1 * 4 + 2) * 4, np.nan, 0), controls, 0.01)
+    with pytest.raises(TypeError, match=r"make_chain\(theta\) must return a lagrange\.Chain, got tuple"):
+        identify(lambda th: (_acrobot(th),), jnp.zeros(4), states, controls, 0.01)
 
 
 def _pendulum_windows(damping, count=4, steps=5):

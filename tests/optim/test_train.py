@@ -18,6 +18,7 @@ import pytest
 import optim
 from optim import checkpoint
 from optim.train import describe
+from policies import MLPPolicy
 from tests.helpers import (ALGORITHMS, EVAL_KEY, EVALUATED, RUN_KEY, RUN_SEED, small_problem, states_equal,
                            tiny_acrobot, tiny_gru, tiny_mlp)
 
@@ -162,3 +163,23 @@ def test_a_nan_in_the_training_state_stops_the_run_before_it_is_checkpointed(tmp
                                                  r"run\.eqx keeps iteration 1"):
         optim.train(Breaks(), task, tiny_mlp(task), RUN_KEY, checkpoint=path, progress=False)
     assert checkpoint.read_header(path)["iteration"] == 1
+
+
+def test_train_refuses_what_does_not_fit_before_any_work():
+    """A key that is not one PRNG key, no evaluation episodes, and a policy built for another task (another
+    observation or action size) are refused by name before anything is compiled or written."""
+    cfg, task, policy, _ = small_problem("APGConfig")
+    cases = [
+        (dict(key=0), r"train: key must be one PRNG key \(jax\.random\.PRNGKey\(seed\) or jax\.random\.key"),
+        (dict(key=jax.random.split(RUN_KEY, 2)), r"train: key must be one PRNG key"),
+        (dict(eval_every=1, eval_episodes=0), r"train: eval_episodes must be an integer >= 1, got 0"),
+        (dict(policy=tiny_mlp(tiny_acrobot())), r"the policy \(MLPPolicy\) does not take the task's observation of "
+                                                r"shape \(2,\): .*Build it for the task: MLPPolicy\.for_task\(task"),
+        (dict(policy=MLPPolicy(2, 3, 4, 1, key=RUN_KEY)), r"returns actions of shape \(3,\), the task takes \(1,\)"),
+    ]
+    for change, message in cases:
+        args = {"key": RUN_KEY, "policy": policy, **change}
+        with pytest.raises(ValueError, match=message):
+            optim.train(cfg, task, args.pop("policy"), args.pop("key"), progress=False, **args)
+    typed = optim.train(cfg, task, policy, jax.random.key(7), progress=False).state  # one key too, stored as raw
+    assert states_equal(typed, optim.train(cfg, task, policy, jax.random.PRNGKey(7), progress=False).state)

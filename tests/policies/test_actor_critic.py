@@ -1,6 +1,7 @@
 """SHAC's actor and critic (policies/actor_critic.py) against a NumPy re-implementation of their layers
 (Linear -> ELU -> LayerNorm, then a linear output), the critic's orthogonal initialisation (``W W^T = 2 I`` and zero
-biases), the actor's reparameterised tanh-Gaussian sample by hand, and its rollout interface (the deterministic action)."""
+biases), the actor's reparameterised tanh-Gaussian sample by hand, and its rollout interface (the deterministic
+action)."""
 
 import equinox as eqx
 import jax

@@ -56,12 +56,15 @@ def test_gym_env_refuses_bad_actions_and_ends_a_blown_up_episode():
     from lagrange.interop.gymnasium import GymEnv
     from lagrange.tasks import ChainSwingup
 
+    with pytest.raises(TypeError, match=r"GymEnv task must be a task of lagrange\.tasks \(an AbstractTask\), got None"):
+        GymEnv(None)
     env = GymEnv(Acrobot.rods(horizon=5))
     env.reset(seed=0)
     q = env._state.q
     for action, message in ((None, r"action must be a real array of shape \(1,\) in \[-1, 1\] .* got None"),
                             ([np.nan], r"action must be finite, got \[nan\]; the state is unchanged"),
-                            ([np.inf], r"action must be finite"), ("push", r"action must be a real array .* got 'push'"),
+                            ([np.inf], r"action must be finite"),
+                            ("push", r"action must be a real array .* got 'push'"),
                             ([True], r"action must be a real array"),
                             (np.zeros((1, 1)), r"action must have shape \(1,\) .* got shape \(1, 1\)"),
                             (0.5, r"action must have shape \(1,\) .* got shape \(\)")):
