@@ -7,11 +7,11 @@ respect to all controls), it times, interleaved in one run:
 
 - ``lagrange``: ``lagrange.simulate(chain, ..., solver=RK4())`` with its defaults
   (non-finite check on, per-interval ``jax.checkpoint`` on),
-- ``closed form``: ``benchmarks/oracles/closed_form.py``, hand-written equations and RK4 in ``lax.scan``,
+- ``closed form``: ``oracles/closed_form.py``, hand-written equations and RK4 in ``lax.scan``,
 - ``closed form + remat``: the same with ``jax.checkpoint`` around each interval, as a careful
   person would add once they measured it,
 - ``naive autodiff``: Hessians of the Lagrangian and ``jnp.linalg.solve``
-  (``benchmarks/oracles/euler_lagrange.py``) in the same RK4 loop, the derivation this library replaces.
+  (``oracles/euler_lagrange.py``) in the same RK4 loop, the derivation this library replaces.
 
 Reported: median wall time over interleaved repeats, compile time, and the ratios
 ``lagrange / closed form`` and ``lagrange / (closed form + remat)``. Shared, noisy machines make
@@ -38,9 +38,9 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 import lagrange as lg  # noqa: E402
 from benchmarks._cli import outputs  # noqa: E402
-from benchmarks.oracles import euler_lagrange as el  # noqa: E402
 from optim.checkpoint import write_json, write_text  # noqa: E402
-from benchmarks.oracles import closed_form as cf  # noqa: E402
+from oracles import closed_form as cf  # noqa: E402
+from oracles import euler_lagrange as el  # noqa: E402
 
 STEPS, DT = 500, 0.01
 SYSTEMS = {

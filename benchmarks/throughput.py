@@ -8,7 +8,7 @@ The acrobot table (:func:`acrobot_main`): ``lagrange.systems.acrobot()``, float6
 control steps from random states under random controls, batch 1 to 4096; env-steps per second of the jitted rollout
 (forward, final state only) and of the gradient of ``sum(q_T^2 + qd_T^2)`` with respect to the controls by reverse
 mode, counting the forward steps covered. Semi-implicit Euler beside Brax generalized, MJX and MuJoCo C's ``Euler``;
-RK4 beside the hand-written closed form (``benchmarks/oracles/closed_form.py``) and MuJoCo C's ``RK4``. MuJoCo C runs
+RK4 beside the hand-written closed form (``oracles/closed_form.py``) and MuJoCo C's ``RK4``. MuJoCo C runs
 ``mujoco.rollout`` with 2 threads; Pinocchio's ABA (and its derivatives) is timed per call on one state from Python (it
 has no batch API). Compile: seconds of the first call of the batch-1024 functions. The n-link scaling sweep:
 :func:`scaling_rows`. Both tables, read: ``docs/benchmarks.md``.
@@ -35,9 +35,9 @@ import lagrange as lg  # noqa: E402
 from benchmarks._cli import markdown_table, outputs  # noqa: E402
 from benchmarks._engines import brax_rollout, mjx_rollout  # noqa: E402
 from benchmarks._timing import block, median_time  # noqa: E402
-from benchmarks.oracles import closed_form as cf  # noqa: E402
 from lagrange.interop.mjcf import to_mjcf  # noqa: E402
 from optim.checkpoint import write_json  # noqa: E402
+from oracles import closed_form as cf  # noqa: E402
 
 DT = 0.01
 STEPS = 100

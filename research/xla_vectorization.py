@@ -7,7 +7,7 @@ The cartpole rollout of ``benchmarks/derivation_overhead.py`` (RK4, 500 steps of
 forward), timed for variants of the hand-written closed form that each change one thing, beside lagrange itself, all
 interleaved in one process. Prints the median time and its ratio to the closed form:
 
-- ``closed form``: ``benchmarks/oracles/closed_form.py`` (constants as Python floats, folded into literals while tracing);
+- ``closed form``: ``oracles/closed_form.py`` (constants as Python floats, folded into literals while tracing);
 - ``closed form, one negate``: its ``-ml g sin`` term written as ``-(ml g sin)``, which XLA keeps as a ``negate``;
 - ``closed form, one * -1``: the same sign as a multiplication by -1.0;
 - ``closed form, constants as arrays``: its parameters as ``jnp`` arrays closed over by the jitted function, which
@@ -35,11 +35,11 @@ import numpy as np
 
 from benchmarks.derivation_overhead import DT, SYSTEMS, _build, inputs
 import lagrange as lg
-from benchmarks.oracles import closed_form as cf
+from oracles import closed_form as cf
 
 
 def _cartpole(p, q, qd, u, sign):
-    """``benchmarks.oracles.closed_form.cartpole_forward_dynamics`` with its gravity term's sign applied by ``sign``."""
+    """``oracles.closed_form.cartpole_forward_dynamics`` with its gravity term's sign applied by ``sign``."""
     s, c = jnp.sin(q[..., 1]), jnp.cos(q[..., 1])
     ml = p.pole_mass * p.pole_com
     thd = qd[..., 1]

@@ -26,8 +26,8 @@ from jax.test_util import check_grads
 import lagrange as lg
 from lagrange.chain import Chain, Link
 from tests.helpers import REL, assert_close, per_state, random_chain, states
-from benchmarks.oracles import closed_form as cf
-from benchmarks.oracles import euler_lagrange as el
+from oracles import closed_form as cf
+from oracles import euler_lagrange as el
 
 
 # ------------------------------------------------------------------ closed forms

@@ -22,7 +22,7 @@ from lagrange import dynamics, recursive
 from lagrange.recursive.kinematics import LinkKinematics
 from tests.helpers import assert_close  # REL = 1e-12, as the docstring says
 from tests.helpers import random_chain as _random_chain
-from benchmarks.oracles import euler_lagrange as el
+from oracles import euler_lagrange as el
 
 
 def random_chain(rng, n, cart=False):

@@ -22,7 +22,7 @@ import pytest
 
 import lagrange as lg
 from lagrange.chain import Chain, Link
-from benchmarks.oracles import euler_lagrange as el
+from oracles import euler_lagrange as el
 
 # ---------------------------------------------------------------------------------------------
 # helpers

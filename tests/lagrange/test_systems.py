@@ -10,7 +10,7 @@ import pytest
 
 import lagrange as lg
 from tests.helpers import assert_close, per_state, states
-from benchmarks.oracles import closed_form as cf
+from oracles import closed_form as cf
 
 
 def _com_inertia_cases(rng):

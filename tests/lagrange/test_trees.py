@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import lagrange as lg
-from benchmarks.oracles import euler_lagrange as el
+from oracles import euler_lagrange as el
 from lagrange.chain import WORLD, Chain, Link
 from tests.helpers import assert_close
 

@@ -3,7 +3,7 @@
 ``tests/lagrange/test_dynamics.py`` and ``tests/lagrange/test_systems.py`` check ``lagrange``'s mass matrices, bias
 forces and rollouts against them; ``benchmarks/derivation_overhead.py``, ``benchmarks/throughput.py`` and
 ``research/xla_vectorization.py`` time ``lagrange`` against them (what the derivation costs beside equations written
-by hand). All import it as ``benchmarks.oracles.closed_form`` (from the repository root).
+by hand). All import it as ``oracles.closed_form`` (from the repository root).
 
 Written the way a careful person writes them by hand: scalar expressions, every sine and cosine
 evaluated once and shared, ``sin(a + b)`` from the angle-sum identity, an explicit 2x2 inverse

@@ -8,7 +8,7 @@ magnitude slower; an oracle, not for loops.
 
 ``tests/lagrange/test_dynamics.py``, ``test_recursive.py`` and ``test_stability.py`` check ``lagrange`` against it;
 ``benchmarks/derivation_overhead.py`` times it as the "naive autodiff" derivation that ``lagrange`` replaces. All
-import it as ``benchmarks.oracles.euler_lagrange`` (from the repository root).
+import it as ``oracles.euler_lagrange`` (from the repository root).
 """
 
 from __future__ import annotations
