@@ -26,7 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from lagrange.chain import Chain
+from lagrange.chain import Chain, check_parameters
 from lagrange._linalg import spd_solver
 from lagrange.actuation import actuation_matrix
 from lagrange.dynamics import energy, forward_dynamics, gravity_forces, mass_matrix
@@ -61,6 +61,20 @@ def _check_dt(dt):
 def _check_substeps(substeps):
     if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
         raise ValueError(f"substeps must be an integer >= 1, got {substeps!r}")
+
+
+def _finite(name: str, x):
+    """``x`` checked to be finite: now (a ``ValueError`` naming ``name`` and the first bad entry) when concrete, when
+    run (``eqx.error_if``) when traced; ``None`` passes."""
+    if x is None:
+        return x
+    if not isinstance(x, jax.core.Tracer):
+        bad = np.argwhere(~np.isfinite(np.asarray(x)))
+        if len(bad):
+            at = tuple(int(i) for i in bad[0])
+            raise ValueError(f"{name} must be finite, got {float(np.asarray(x)[at])} at index {at}")
+        return x
+    return eqx.error_if(x, ~jnp.all(jnp.isfinite(x)), f"lagrange.simulate: {name} is not finite (NaN or Inf)")
 
 
 def _check_max_steps(max_steps):
@@ -288,6 +302,9 @@ def simulate(
     us = _real_array("controls", controls) if arrays else None
     dtype = _float_dtype(chain, q0, qd0, us)
     q0, qd0 = q0.astype(dtype), qd0.astype(dtype)
+    chain = check_parameters(chain, at_run_time=check)  # once, before the loop (concrete ones while tracing)
+    if check:
+        q0, qd0, us = (_finite(name, x) for name, x in (("q0", q0), ("qd0", qd0), ("controls", us)))
     interval = _interval(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps)
     if checkpoint and adjoint is None and rtol is None and atol is None:
         interval = jax.checkpoint(interval)

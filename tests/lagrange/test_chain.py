@@ -355,9 +355,14 @@ def test_singular_configuration_is_reported():
 
 
 def test_non_finite_initial_state_is_reported():
-    with pytest.raises(RuntimeError, match=r"non-finite"):
-        traj = lg.simulate(acrobot(), jnp.array([NAN, 0.0]), jnp.zeros(2), jnp.zeros((3, 1)), 0.01)
-        jax.block_until_ready(traj.q)
+    """A NaN initial state or control is refused by name: now when concrete, when run under jit."""
+    with pytest.raises(ValueError, match=r"q0 must be finite, got nan at index \(0,\)"):
+        lg.simulate(acrobot(), jnp.array([NAN, 0.0]), jnp.zeros(2), jnp.zeros((3, 1)), 0.01)
+    with pytest.raises(ValueError, match=r"controls must be finite, got inf at index \(1, 0\)"):
+        lg.simulate(acrobot(), jnp.zeros(2), jnp.zeros(2), jnp.array([[0.0], [np.inf], [0.0]]), 0.01)
+    run = eqx.filter_jit(lambda qd0: lg.simulate(acrobot(), jnp.zeros(2), qd0, jnp.zeros((3, 1)), 0.01).q)
+    with pytest.raises(RuntimeError, match=r"qd0 is not finite"):
+        jax.block_until_ready(run(jnp.array([0.0, NAN])))
 
 
 @pytest.mark.parametrize("field, value, message", [

@@ -162,8 +162,11 @@ def test_no_module_of_lagrange_names_an_algorithm():
 
 
 def test_chain_imports_no_other_module():
-    """``lagrange.chain`` is the root of the physics: the parameters and their checks, no dynamics."""
-    assert import_graph("lagrange")["lagrange.chain"] == set()
+    """``lagrange.chain`` and the laws it holds (``lagrange.contact``, ``lagrange.limits``) are the root of the physics:
+    the parameters and their checks, no dynamics."""
+    graph = import_graph("lagrange")
+    assert graph["lagrange.chain"] == {"lagrange.contact", "lagrange.limits"}
+    assert graph["lagrange.contact"] == set() and graph["lagrange.limits"] == {"lagrange.contact"}
 
 
 def _run_fresh(code: str) -> None:
