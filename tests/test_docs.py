@@ -52,3 +52,22 @@ def test_solvers_page_snippet_runs():
              "us": jnp.zeros((20, 1))}
     exec("import diffrax\nimport lagrange as lg", scope)
     run_page("solvers.md", scope)
+
+
+def test_conventions_biped_is_as_described():
+    s = run_page("conventions.md")
+    biped = s["biped"]
+    assert biped.parents == (-1, 0, 1, 2, 3, 2, 5) and biped.children(2) == (3, 5)
+    assert biped.path(6) == (0, 1, 2, 5, 6) and not biped.serial
+    # the back thigh's attach point (-0.1, 0) in the upright torso's frame is x = +0.1 in the world; the feet
+    np.testing.assert_allclose(np.asarray(lg.positions(biped, jnp.zeros(7))[5]), [0.1, 0.0], atol=1e-15)
+    np.testing.assert_allclose(np.asarray(s["tips"])[[4, 6]], [[0.0, -0.8], [0.1, -0.8]], atol=1e-15)
+
+
+def test_contact_page_snippet_runs():
+    s = run_page("contact.md")
+    traj, biped = s["traj"], s["biped"]
+    assert traj.q.shape == (301, 7) and biped.contact_links == (4, 6) and biped.limited == (3, 4, 5, 6)
+    assert float(jnp.min(traj.q[:, 1])) < 0.0  # it landed: the feet sank below their starting height's 10 cm
+    assert s["kinetic"].shape == s["potential"].shape == (301,)
+    assert np.isfinite(float(s["dke"])) and float(s["dke"]) != 0.0  # the contact is felt

@@ -24,7 +24,7 @@ def test_readme_chain_example_runs():
     import re
 
     readme = (ROOT / "README.md").read_text()
-    code = re.search(r"## Define a chain\n\n```python\n(.*?)```", readme, re.S).group(1)
+    code = re.search(r"## Define a chain or a tree\n\n```python\n(.*?)```", readme, re.S).group(1)
     scope: dict = {}
     exec(compile(code, "README.md", "exec"), scope)
     assert scope["traj"].q.shape == (501, 4)
@@ -33,6 +33,27 @@ def test_readme_chain_example_runs():
     import numpy as np
 
     assert np.all(np.isfinite(np.asarray(scope["dmass"])))
+
+
+def test_readme_tree_example_runs():
+    """The tree snippet, run after the chain snippet as a reader runs them: the biped's structure, its feet's contact
+    points and limited joints, and a drop onto the ground that lands (the feet sink) and stays finite."""
+    import re
+
+    import jax.numpy as jnp
+    import numpy as np
+
+    readme = (ROOT / "README.md").read_text()
+    section = readme[readme.index("## Define a chain or a tree"):readme.index("Or read one from MJCF")]
+    scope: dict = {}
+    for code in re.findall(r"```python\n(.*?)```", section, re.S):
+        exec(compile(code, "README.md", "exec"), scope)
+    biped = scope["biped"]
+    assert biped.parents == (-1, 0, 1, 2, 3, 2, 5) and biped.children(2) == (3, 5)
+    assert biped.contact_links == (4, 6) and biped.limited == (3, 4, 5, 6) and biped.m == 4
+    drop = scope["drop"]
+    assert drop.q.shape == (301, 7) and np.all(np.isfinite(np.asarray(drop.q)))
+    assert float(jnp.min(drop.q[:, 1])) < 0.0  # it fell 10 cm onto its feet and sank in
 
 
 def test_readme_mjcf_example_runs():
@@ -44,3 +65,4 @@ def test_readme_mjcf_example_runs():
     scope: dict = {}
     exec(compile(code, "README.md", "exec"), scope)
     assert scope["chain"].joints == ("prismatic", "revolute", "revolute") and scope["chain"].m == 1
+    assert scope["cheetah"].parents == (-1, 0, 1, 2, 3, 4, 2, 6, 7) and scope["cheetah"].m == 6
