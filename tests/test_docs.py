@@ -30,6 +30,8 @@ def test_getting_started_runs_and_shapes_are_as_stated():
     # "Define a chain": chain.n is 4, chain.m is 3, M is (4, 4), one mass gradient per link
     assert (s["M"].shape, s["dmass"].shape) == ((4, 4), (4,))
     assert np.all(np.isfinite(np.asarray(s["dmass"])))
+    # "Trees, springs, contact and limits": a cart carrying two pendulums side by side
+    assert s["tree"].parents == (-1, 0, 0) and s["tree"].children(0) == (1, 2)
     # "Simulate": (301, 2) states and (300, 1) controls for 300 intervals of the acrobot
     assert s["traj"].q.shape == (301, 2) and s["traj"].u.shape == (300, 1)
     # "Gradients": a Chain of parameter gradients, and one per control
