@@ -144,7 +144,7 @@ def _check_point(name: str, value) -> None:
 
 
 class Link(eqx.Module):
-    """One link of a planar chain and the joint that connects it to its parent.
+    """One link of a planar chain or tree and the joint that connects it to its parent.
 
     Every parameter is a real scalar (a Python number, or a 0-d array; traced values are accepted
     and checked once they are known).
@@ -311,6 +311,34 @@ class Chain(eqx.Module):
             default): no limits. Given exactly when some link has a range.
 
     Attributes:
+        mass: link masses [kg], shape ``(n,)``.
+        length: link lengths, joint to tip [m], shape ``(n,)``.
+        com: centre-of-mass distances along each link [m], shape ``(n,)``.
+        inertia: moments of inertia about the centres of mass [kg m^2], shape ``(n,)``.
+        damping: joint damping [N s/m or N m s/rad], shape ``(n,)``; ``None`` when no joint is damped.
+        armature: joint armature [kg or kg m^2], shape ``(n,)``; ``None`` when no joint has one.
+        gear: the actuated joints' gears, shape ``(m,)``; ``None`` for an unactuated chain.
+        gravity: gravitational acceleration [m/s^2], shape ``()``; ``None`` for zero gravity.
+        com_normal: centre-of-mass offsets along each link's normal [m], shape ``(n,)``; ``None`` when all are 0.
+        attach: the attach points ``(x, z)`` [m] of the links in ``attached``, shape ``(len(attached), 2)``; ``None``
+            when every link sits at its parent's tip (or the world's origin).
+        stiffness: joint spring stiffnesses [N m/rad or N/m], shape ``(n,)``; ``None`` without springs.
+        springref: the springs' rest coordinates [rad or m], shape ``(n,)``; ``None`` without springs.
+        ranges: the ranges ``(lower, upper)`` [rad or m] of the links in ``limited``, shape ``(len(limited), 2)``;
+            ``None`` without limits.
+        contact_points: the contact points ``(x, z, radius)`` [m] in their links' frames, shape ``(k, 3)``;
+            ``None`` without contact.
+        contact: the ground contact law, or ``None``.
+        limits: the joint limit law, or ``None``.
+        joints: each link's joint kind, ``"revolute"`` or ``"prismatic"`` (static).
+        axes: each prismatic joint's slide angle relative to its parent's normal [rad] (0 for revolute joints;
+            static).
+        offsets: each link frame's angle against its parent's at ``q = 0`` [rad] (static).
+        control_ranges: per actuated joint, its ``(lo, hi)`` or ``None``; ``None`` when no control is clamped
+            (static).
+        actuated: the actuated links, in order: control ``k`` drives link ``actuated[k]`` (static).
+        damped: the links whose joint is damped (static).
+        armatured: the links whose joint has armature (static).
         parents: each link's parent, ``-1`` for the world (static).
         attached: the links with an ``attach`` point of their own (the others sit at their parent's tip), in order;
             ``attach[k]`` belongs to link ``attached[k]`` (static).
@@ -433,8 +461,12 @@ class Chain(eqx.Module):
         self.contact, self.limits = contact, limits
 
     def frame_offsets(self) -> tuple[float, ...]:
-        """Each link frame's angle at ``q = 0`` [rad], the sum of the offsets on its path from the world:
-        ``phi_i = offset_sum_i +`` (the revolute ``q_j`` on that path). Static."""
+        """Each link frame's angle at ``q = 0``: the sum of the offsets on its path from the world. Static.
+
+        Returns:
+            One angle [rad] per link: ``phi_i = offset_sum_i + sum_j sense_j q_j`` over the revolute joints ``j`` on
+            link ``i``'s path.
+        """
         out: list[float] = []
         for i, off in enumerate(self.offsets):
             out.append(off if self.parents[i] == WORLD else out[self.parents[i]] + off)
@@ -456,11 +488,25 @@ class Chain(eqx.Module):
         return self.parents == tuple(range(-1, self.n - 1))
 
     def children(self, i: int) -> tuple[int, ...]:
-        """The links whose parent is link ``i`` (``-1``: the links of the world), in order. Static."""
+        """The links whose parent is link ``i``, in order. Static.
+
+        Args:
+            i: a link's index, or ``-1`` for the world.
+
+        Returns:
+            The children's indices (the links of the world for ``i = -1``).
+        """
         return tuple(k for k, p in enumerate(self.parents) if p == i)
 
     def path(self, i: int) -> tuple[int, ...]:
-        """The links from the world to link ``i``, ``i`` included, in order. Static."""
+        """The links from the world to link ``i``, ``i`` included, in order. Static.
+
+        Args:
+            i: a link's index.
+
+        Returns:
+            The indices on the path, the link of the world first and ``i`` last.
+        """
         out = []
         while i != WORLD:
             out.append(i)
@@ -468,15 +514,24 @@ class Chain(eqx.Module):
         return tuple(reversed(out))
 
     def segments(self) -> tuple[tuple[int, int], ...]:
-        """The tree as serial segments ``(start, stop)``: links ``start, ..., stop - 1``, each the only child of the
-        one before; a segment ends at a link with no child or several, or one whose child is not listed next. The
-        parent of a segment's first link is the world or the last link of an earlier segment. Static."""
+        """The tree as serial segments: runs of links, each the only child of the one before. Static.
+
+        A segment ends at a link with no child or several, or one whose child is not listed next. The parent of a
+        segment's first link is the world or the last link of an earlier segment.
+
+        Returns:
+            ``(start, stop)`` pairs in order, each the links ``start, ..., stop - 1``; ``((0, n),)`` for a serial chain.
+        """
         starts = [i for i in range(self.n) if i == 0 or self.parents[i] != i - 1 or len(self.children(i - 1)) != 1]
         return tuple(zip(starts, starts[1:] + [self.n]))
 
     def links(self) -> tuple[Link, ...]:
-        """The chain as a tuple of :class:`Link` (for editing and re-building with ``Chain(links, gravity,
-        contact=chain.contact, limits=chain.limits)``)."""
+        """The chain as its links, for editing and re-building.
+
+        Returns:
+            A tuple of :class:`Link`, one per link, from which ``Chain(links, gravity, contact=chain.contact,
+            limits=chain.limits)`` rebuilds the chain.
+        """
         out = []
         k = {j: i for i, j in enumerate(self.actuated)}
         at = {j: i for i, j in enumerate(self.attached)}
@@ -650,9 +705,12 @@ _RULES = (
 
 
 def check_parameters(chain: Chain, *, at_run_time: bool = True) -> Chain:
-    """``chain`` with every parameter checked against its rule (masses, lengths, inertias, damping, armature and
-    stiffness >= 0, gears > 0, all finite), for parameters that did not pass through :class:`Chain`'s constructor:
-    set by ``eqx.tree_at``, or traced under ``jit``/``grad``/``vmap`` (a fit's parameters).
+    """Check every parameter of a chain against its rule, including those that skipped the constructor.
+
+    The rules: masses, lengths, inertias, damping, armature and stiffness >= 0, gears > 0, the contact and limit
+    laws' parameters as their constructors require, everything finite. The parameters that did not pass through
+    :class:`Chain`'s constructor are those set by ``eqx.tree_at`` or traced under ``jit``/``grad``/``vmap`` (a fit's
+    parameters); every function of :mod:`lagrange.dynamics` calls this.
 
     A concrete parameter is checked now, in NumPy; a traced one when it is computed, by ``eqx.branched_error_if``
     tied to the returned chain's leaves (only with ``at_run_time=True``), which names the link. Either way the error

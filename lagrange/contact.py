@@ -33,7 +33,21 @@ from jaxtyping import Array, ArrayLike, Float
 
 
 def scalar_parameter(cls: str, name: str, value, *, positive: bool = False):
-    """A real scalar parameter as a JAX array, checked when concrete (``>= 0``, or ``> 0`` with ``positive``)."""
+    """A law's real scalar parameter as a JAX array, checked when concrete.
+
+    Args:
+        cls: the law's class name, for the messages.
+        name: the parameter's name, for the messages.
+        value: a real scalar (a Python number or a 0-d array), or a traced value (not checked).
+        positive: require ``> 0`` instead of ``>= 0``.
+
+    Returns:
+        ``value`` as a 0-d array of JAX's default float type.
+
+    Raises:
+        TypeError: for a bool, a string, ``None`` or a non-number.
+        ValueError: for an array that is not 0-d, a non-finite value, or one that breaks the sign rule.
+    """
     if isinstance(value, (bool, str)) or value is None:
         raise TypeError(f"{cls}.{name} must be a real number, got {value!r}")
     if not isinstance(value, jax.core.Tracer):
@@ -60,7 +74,11 @@ class PenaltyContact(eqx.Module):
         ground: the ground's height [m] (the level line ``z = ground``).
 
     Attributes:
-        ke, kd, kf, mu, ground: the parameters, as 0-d arrays (differentiable).
+        ke: contact stiffness [N/m], a 0-d array (differentiable, as are the others).
+        kd: contact damping [N s/m^2], a 0-d array.
+        kf: friction's viscous gain [N s/m], a 0-d array.
+        mu: friction coefficient, a 0-d array.
+        ground: the ground's height [m], a 0-d array.
     """
 
     ke: Float[Array, ""]
@@ -83,9 +101,17 @@ class PenaltyContact(eqx.Module):
         self.ground = jnp.asarray(g, jax.dtypes.canonicalize_dtype(float))
 
     def forces(self, depth, vn, vt):
-        """``(fn, ft)``: the normal and ground-parallel forces [N] at spots of depth ``depth`` [m] (positive below the
-        ground) moving with ``vn`` (along ``+z``) and ``vt`` (along ``+x``) [m/s]; zero where ``depth <= 0``. Any
-        shapes that broadcast."""
+        """The contact forces at spots below the ground, by the law of the module docstring.
+
+        Args:
+            depth: the spots' depth below the ground [m], positive below it; any shape.
+            vn: the spots' velocity along the ground's normal ``+z`` [m/s]; broadcast against ``depth``.
+            vt: the spots' velocity along the ground ``+x`` [m/s]; broadcast against ``depth``.
+
+        Returns:
+            ``(fn, ft)``: the normal force along ``+z`` and the friction force along ``+x`` [N], of the broadcast
+            shape; zero where ``depth <= 0``.
+        """
         d = jnp.where(depth > 0, depth, 0.0)
         fn = self.ke * d + self.kd * d * jnp.where(vn < 0, -vn, 0.0)
         bound = self.mu * self.ke * d
@@ -93,6 +119,13 @@ class PenaltyContact(eqx.Module):
         return fn, ft
 
     def energy(self, depth):
-        """``1/2 ke d^2`` [J] for ``d = max(depth, 0)``, elementwise."""
+        """The penalty spring's potential energy.
+
+        Args:
+            depth: the spots' depth below the ground [m], positive below it; any shape.
+
+        Returns:
+            ``1/2 ke d^2`` [J] for ``d = max(depth, 0)``, elementwise.
+        """
         d = jnp.where(depth > 0, depth, 0.0)
         return 0.5 * self.ke * d * d

@@ -1,15 +1,21 @@
-"""Equations of motion ``M(q) qdd + C(q, qd) qd + T(q) + D qd = B u``, derived by autodiff.
+"""Equations of motion ``M(q) qdd + C(q, qd) qd + T(q) + D qd + K (q - q_ref) = B u + tau_limits + sum_s J_s^T f_s``.
 
-The kinetic energy of a planar chain is ``T = 1/2 sum_i (m_i |J_i qd|^2 + I_i (s_i qd)^2)
+The kinetic energy of a planar chain or tree is ``T = 1/2 sum_i (m_i |J_i qd|^2 + I_i (s_i qd)^2)
 + 1/2 sum_j a_j qd_j^2``, with ``J_i`` the Jacobian of link i's centre of mass and ``s_i`` the
-0/1 row of the revolute joints before it. Lagrange's equations then give
+row of the revolute joints on its path from the world (each joint's ``sense``, 0 elsewhere). Lagrange's equations
+then give
 
 - ``M = d2T/dqd2 = sum_i m_i J_i^T J_i + I_i s_i^T s_i + diag(armature)``,
 - ``C qd = sum_i m_i J_i^T (dJ_i/dt) qd`` (the velocity-product acceleration of each centre of
   mass, pulled back to the joints; the planar rotation terms have none),
-- ``T(q) = dV/dq = sum_i m_i g J_i^T e_z``.
+- ``T(q) = dV/dq = sum_i m_i g J_i^T e_z``,
 
-This module checks the arguments and picks one of two derivations by the chain's size, here and nowhere else:
+and the joints' dampers ``D qd``, springs ``K (q - q_ref)``, the limits' penalty forces ``tau_limits``
+(:class:`lagrange.PenaltyLimits`) and the contact forces ``f_s`` at the contact spots ``s``
+(:class:`lagrange.PenaltyContact`) are generalized forces beside ``B u``.
+
+This module checks the arguments and the parameters and picks one of two derivations by the chain's size, here and
+nowhere else:
 
 - chains of fewer than ``RECURSIVE_MIN`` links: :mod:`lagrange.unrolled`, where ``J_i`` and ``(dJ_i/dt) qd`` are
   differentiated at trace time from the forward kinematics written as sums of unit vectors, simplified at trace time,
@@ -129,7 +135,12 @@ def mass_matrix(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "
 def bias_forces(
     chain: Chain, q: Float[ArrayLike, "*batch n"], qd: Float[ArrayLike, "*batch n"]
 ) -> Float[Array, "*batch n"]:
-    """``C(q, qd) qd + T(q) + D qd``: the generalized forces the joints must supply at ``qdd = 0``.
+    """``C(q, qd) qd + T(q) + D qd + K (q - q_ref) - tau_limits - sum_s J_s^T f_s``: what the joints must supply at
+    ``qdd = 0``.
+
+    The velocity products, gravity, the joints' dampers and springs, minus the limits' penalty forces and the contact
+    forces (each term only where the chain has it). For a model read by :func:`~lagrange.interop.mjcf.from_mjcf`
+    without limits and contact it equals MuJoCo's ``qfrc_bias - qfrc_passive``.
 
     Args:
         chain: the :class:`~lagrange.chain.Chain`.
@@ -148,7 +159,7 @@ def bias_forces(
 
 
 def gravity_forces(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch n"]:
-    """``T(q) = dV/dq``, the generalized gravity forces.
+    """``T(q) = dV/dq``: the generalized gravity forces (no springs, limits or contact).
 
     Args:
         chain: the :class:`~lagrange.chain.Chain`.
@@ -173,7 +184,7 @@ def forward_dynamics(
     implicit_damping_dt: float | Float[ArrayLike, ""] | None = None,
     check: bool = True,
 ) -> Float[Array, "*batch n"]:
-    """Joint accelerations ``qdd = M^-1 (B u - C qd - T - D qd)``.
+    """Joint accelerations ``qdd = M^-1 (B u - bias_forces(chain, q, qd))``.
 
     Args:
         chain: the :class:`~lagrange.chain.Chain`.
@@ -243,7 +254,7 @@ def inverse_dynamics(
     qd: Float[ArrayLike, "*batch n"],
     qdd: Float[ArrayLike, "*batch n"],
 ) -> Float[Array, "*batch n"]:
-    """The generalized forces ``M qdd + C qd + T + D qd`` that produce the accelerations ``qdd``.
+    """The generalized forces ``M qdd + bias_forces(chain, q, qd)`` that produce the accelerations ``qdd``.
 
     Args:
         chain: the :class:`~lagrange.chain.Chain`.
@@ -266,7 +277,7 @@ def inverse_dynamics(
 def energy(
     chain: Chain, q: Float[ArrayLike, "*batch n"], qd: Float[ArrayLike, "*batch n"]
 ) -> tuple[Float[Array, " *batch"], Float[Array, " *batch"]]:
-    """The kinetic and potential energy.
+    """The kinetic and potential energy, the potential with every spring's.
 
     Args:
         chain: the :class:`~lagrange.chain.Chain`.
@@ -274,8 +285,9 @@ def energy(
         qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
 
     Returns:
-        ``(kinetic, potential)`` [J], each of shape ``(*batch,)``; the potential is zero with the chain's origin at
-        z = 0.
+        ``(kinetic, potential)`` [J], each of shape ``(*batch,)``. The potential is gravity's (zero with the chain's
+        origin at z = 0), plus the joint springs' ``1/2 K (q - q_ref)^2``, the limits' ``1/2 ke (q - bound)^2`` outside
+        the ranges and the contact's ``1/2 ke d^2`` of the points below the ground.
     """
     _check(chain, "q", q, chain.n)
     _check(chain, "qd", qd, chain.n)

@@ -24,7 +24,8 @@ class PenaltyLimits(eqx.Module):
         kd: limit damping [N m s/rad or N s/m], >= 0, applied outside the range only.
 
     Attributes:
-        ke, kd: the parameters, as 0-d arrays (differentiable).
+        ke: limit stiffness [N m/rad or N/m], a 0-d array (differentiable).
+        kd: limit damping [N m s/rad or N s/m], a 0-d array (differentiable).
     """
 
     ke: Float[Array, ""]
@@ -35,14 +36,33 @@ class PenaltyLimits(eqx.Module):
         self.kd = scalar_parameter("PenaltyLimits", "kd", kd)
 
     def forces(self, q, qd, lower, upper):
-        """The generalized forces of joints at ``q`` moving with ``qd`` with ranges ``[lower, upper]`` (any shapes
-        that broadcast): ``ke (bound - q) - kd qd`` outside, 0 inside."""
+        """The limits' generalized forces, by the law of the module docstring.
+
+        Args:
+            q: joint coordinates [rad or m]; any shape.
+            qd: joint velocities [rad/s or m/s]; broadcast against ``q``.
+            lower: the ranges' lower bounds [rad or m]; broadcast against ``q``.
+            upper: the ranges' upper bounds [rad or m]; broadcast against ``q``.
+
+        Returns:
+            ``ke (bound - q) - kd qd`` outside the range, 0 inside (and on a bound) [N m or N], of the broadcast
+            shape.
+        """
         below = jnp.where(q < lower, q - lower, 0.0)
         above = jnp.where(q > upper, q - upper, 0.0)
         outside = (q < lower) | (q > upper)
         return -self.ke * (below + above) - jnp.where(outside, self.kd * qd, 0.0)
 
     def energy(self, q, lower, upper):
-        """``1/2 ke (q - bound)^2`` outside the range, 0 inside, elementwise [J]."""
+        """The limit springs' potential energy.
+
+        Args:
+            q: joint coordinates [rad or m]; any shape.
+            lower: the ranges' lower bounds [rad or m]; broadcast against ``q``.
+            upper: the ranges' upper bounds [rad or m]; broadcast against ``q``.
+
+        Returns:
+            ``1/2 ke (q - bound)^2`` [J] outside the range, 0 inside, elementwise.
+        """
         v = jnp.where(q < lower, q - lower, 0.0) + jnp.where(q > upper, q - upper, 0.0)
         return 0.5 * self.ke * v * v

@@ -43,9 +43,21 @@ def pendulum(
     gear: Scalar | None = 1.0,
     gravity: Scalar = 9.81,
 ) -> Chain:
-    """A single revolute link hanging from the origin; ``q = (theta,)``, ``u`` of shape ``(1,)`` (``(0,)`` with
-    ``gear=None``). Units and defaults of the keywords as for :class:`~lagrange.chain.Link` [kg, m, kg m^2,
-    N m s/rad] and :class:`~lagrange.chain.Chain` (gravity [m/s^2])."""
+    """A single revolute link hanging from the origin.
+
+    Args:
+        mass: the link's mass [kg].
+        length: its length [m].
+        com: its centre of mass's distance from the joint [m]; ``None``: ``length / 2``.
+        inertia: its moment of inertia about the centre of mass [kg m^2]; ``None``: a thin rod's.
+        damping: joint damping [N m s/rad].
+        gear: the torque's gear (torque ``gear * u`` [N m]); ``None`` leaves the joint passive.
+        gravity: gravitational acceleration [m/s^2].
+
+    Returns:
+        The :class:`~lagrange.chain.Chain`: ``q = (theta,)`` [rad], ``u`` of shape ``(1,)`` (``(0,)`` with
+        ``gear=None``).
+    """
     return Chain([Link("revolute", mass, length, com, inertia, damping=damping, gear=gear)], gravity=gravity)
 
 
@@ -60,8 +72,22 @@ def cartpole(
     gear: Scalar = 100.0,
     gravity: Scalar = 9.81,
 ) -> Chain:
-    """A cart on the x axis (prismatic, actuated) carrying one pole (revolute, passive); ``q = (x, theta)``
-    [m, rad], ``u`` of shape ``(1,)`` (cart force ``gear * u`` [N]). ``damping`` [N s/m] acts on the cart."""
+    """A cart on the x axis (prismatic, actuated) carrying one pole (revolute, passive).
+
+    Args:
+        cart_mass: the cart's mass [kg].
+        pole_mass: the pole's mass [kg].
+        pole_length: the pole's length [m].
+        pole_com: the pole's centre of mass's distance from its hinge [m]; ``None``: ``pole_length / 2``.
+        pole_inertia: the pole's moment of inertia about its centre of mass [kg m^2]; ``None``: a thin rod's.
+        damping: the cart's damping [N s/m].
+        gear: the cart force's gear (force ``gear * u`` [N]).
+        gravity: gravitational acceleration [m/s^2].
+
+    Returns:
+        The :class:`~lagrange.chain.Chain`: ``q = (x, theta)`` [m, rad], the pole upright at ``theta = pi``; ``u`` of
+        shape ``(1,)``.
+    """
     return Chain(
         [
             Link("prismatic", cart_mass, 0.0, com=0.0, inertia=0.0, damping=damping, gear=gear),
@@ -82,8 +108,22 @@ def double_cartpole(
     gear: Scalar = 1000.0,
     gravity: Scalar = 9.81,
 ) -> Chain:
-    """A cart on the x axis (actuated) carrying two poles in series (passive); ``q = (x, theta1, theta2)``
-    [m, rad, rad], ``u`` of shape ``(1,)`` (cart force ``gear * u`` [N]). ``damping`` [N s/m] acts on the cart."""
+    """A cart on the x axis (actuated) carrying two poles in series (passive).
+
+    Args:
+        cart_mass: the cart's mass [kg].
+        pole_masses: the poles' masses [kg].
+        pole_lengths: the poles' lengths [m].
+        pole_coms: each pole's centre of mass's distance from its hinge [m]; ``None``: half its length.
+        pole_inertias: each pole's moment of inertia about its centre of mass [kg m^2]; ``None``: a thin rod's.
+        damping: the cart's damping [N s/m].
+        gear: the cart force's gear (force ``gear * u`` [N]).
+        gravity: gravitational acceleration [m/s^2].
+
+    Returns:
+        The :class:`~lagrange.chain.Chain`: ``q = (x, theta1, theta2)`` [m, rad, rad], upright at
+        ``(x, pi, 0)``; ``u`` of shape ``(1,)``.
+    """
     return Chain(
         [
             Link("prismatic", cart_mass, 0.0, com=0.0, inertia=0.0, damping=damping, gear=gear),
@@ -104,8 +144,21 @@ def acrobot(
     gear: Scalar = 25.0,
     gravity: Scalar = 9.81,
 ) -> Chain:
-    """Two revolute links; the shoulder is passive and the elbow actuated; ``q = (theta1, theta2)`` [rad], ``u`` of
-    shape ``(1,)`` (elbow torque ``gear * u`` [N m]). ``damping`` [N m s/rad] acts on both joints."""
+    """Two revolute links; the shoulder is passive and the elbow actuated.
+
+    Args:
+        masses: the links' masses [kg].
+        lengths: the links' lengths [m].
+        coms: each link's centre of mass's distance from its joint [m]; ``None``: half its length.
+        inertias: each link's moment of inertia about its centre of mass [kg m^2]; ``None``: a thin rod's.
+        damping: both joints' damping [N m s/rad].
+        gear: the elbow torque's gear (torque ``gear * u`` [N m]).
+        gravity: gravitational acceleration [m/s^2].
+
+    Returns:
+        The :class:`~lagrange.chain.Chain`: ``q = (theta1, theta2)`` [rad], upright at ``(pi, 0)``; ``u`` of shape
+        ``(1,)``.
+    """
     return Chain(
         [
             Link("revolute", masses[0], lengths[0], com=coms[0], inertia=inertias[0], damping=damping),
@@ -124,8 +177,23 @@ def n_link_pendulum(
     gear: Scalar | None = None,
     gravity: Scalar = 9.81,
 ) -> Chain:
-    """``n`` identical revolute links in series; ``q = (theta1, ..., thetan)`` [rad]. ``gear`` actuates every joint
-    (``u`` of shape ``(n,)``, torques ``gear * u`` [N m]); ``None`` leaves them passive (``u`` of shape ``(0,)``)."""
+    """``n`` identical revolute links in series, thin rods.
+
+    Args:
+        n: the number of links, an integer >= 1.
+        mass: each link's mass [kg].
+        length: each link's length [m].
+        damping: each joint's damping [N m s/rad].
+        gear: actuates every joint (torques ``gear * u`` [N m]); ``None`` leaves them passive.
+        gravity: gravitational acceleration [m/s^2].
+
+    Returns:
+        The :class:`~lagrange.chain.Chain`: ``q = (theta1, ..., thetan)`` [rad]; ``u`` of shape ``(n,)``, or
+        ``(0,)`` with ``gear=None``.
+
+    Raises:
+        ValueError: if ``n`` is not an integer >= 1.
+    """
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise ValueError(f"n must be an integer >= 1, got {n!r}")
     return Chain([Link("revolute", mass, length, damping=damping, gear=gear) for _ in range(n)], gravity=gravity)

@@ -1,7 +1,8 @@
-"""Reading MJCF: the planar models people hold as MJCF, through MuJoCo's own compiler, as exact chains.
+"""Reading MJCF: the planar models people hold as MJCF, through MuJoCo's own compiler, as exact chains and trees.
 
 :func:`from_mjcf` reads a model as a :class:`~lagrange.chain.Chain` whose ``q``, ``qd`` and ``u`` are MuJoCo's
-``qpos``, ``qvel`` and ``ctrl`` (the docs' "Importing MJCF"), and refuses by name what a chain cannot reproduce.
+``qpos``, ``qvel`` and ``ctrl`` (the docs' "Importing MJCF"), with its joint ranges and ground contact as penalty laws
+or left out, and refuses by name what a planar tree cannot reproduce.
 Reading needs MuJoCo (``pip install -e ".[mjcf]"``), imported when first called.
 """
 
@@ -141,8 +142,18 @@ def _refuse_contacts(mujoco, model, nm) -> None:
 
 
 def contact_pairs(mujoco, model) -> list[tuple[int, int]]:
-    """Every pair of geoms ``(g1, g2)``, ``g1 < g2``, that MuJoCo's collision driver would test: contype/conaffinity
-    bits that match, not on one rigid body, not parent and child (unless ``filterparent`` is disabled), not excluded."""
+    """Every pair of geoms that MuJoCo's collision driver would test.
+
+    Its rules: contype/conaffinity bits that match, not on one rigid body, not parent and child (unless
+    ``filterparent`` is disabled), not excluded by an ``<exclude>``.
+
+    Args:
+        mujoco: the ``mujoco`` module.
+        model: the compiled ``mujoco.MjModel``.
+
+    Returns:
+        The pairs ``(g1, g2)`` of geom indices, ``g1 < g2``, in order.
+    """
     off = model.opt.disableflags
     bit = mujoco.mjtDisableBit
     excluded = {(int(model.exclude_signature[k] >> 16), int(model.exclude_signature[k] & 0xFFFF))

@@ -7,7 +7,14 @@ from __future__ import annotations
 import numpy as np
 
 def import_mujoco():
-    """The ``mujoco`` module, or an ``ImportError`` that says how to install it."""
+    """Import MuJoCo, or say how to install it.
+
+    Returns:
+        The ``mujoco`` module.
+
+    Raises:
+        ImportError: without MuJoCo, naming ``pip install -e ".[mjcf]"``.
+    """
     try:
         import mujoco
     except ImportError as err:  # pragma: no cover - the test extra installs it
@@ -18,7 +25,19 @@ def import_mujoco():
 
 
 def compile_model(source):
-    """``source`` (a path, an MJCF string or a compiled ``mujoco.MjModel``) as a compiled model."""
+    """A model compiled by MuJoCo.
+
+    Args:
+        source: a path to an MJCF file, an MJCF string (starting with ``<``), or a compiled ``mujoco.MjModel``
+            (returned as it is).
+
+    Returns:
+        The ``mujoco.MjModel``.
+
+    Raises:
+        FileNotFoundError: for a path with no file.
+        TypeError: for anything else.
+    """
     mujoco = import_mujoco()
     if isinstance(source, mujoco.MjModel):
         return source
@@ -35,10 +54,19 @@ def compile_model(source):
 
 
 def mujoco_rollout(source, q0, qd0, controls):
-    """MuJoCo's own ``mj_step`` rollout of a model from ``(q0, qd0)`` under ``controls`` (``(T, nu)``, one row per
-    step): the states ``(T + 1, nq + nv)`` as rows ``(qpos, qvel)`` and whether MuJoCo met a constraint on the way (a
-    joint limit or a contact, which a chain from :func:`from_mjcf` does not have). For cross-checks and for data to
-    identify a chain from (:func:`optim.identify.identify`)."""
+    """MuJoCo's own ``mj_step`` rollout of a model, for cross-checks and for data to identify a chain from.
+
+    Args:
+        source: a path, an MJCF string or a compiled ``mujoco.MjModel`` (:func:`compile_model`).
+        q0: the initial ``qpos``, shape ``(nq,)``.
+        qd0: the initial ``qvel``, shape ``(nv,)``.
+        controls: the ``ctrl`` of each step, shape ``(T, nu)``.
+
+    Returns:
+        ``(states, met)``: the states, shape ``(T + 1, nq + nv)``, as rows ``(qpos, qvel)``; and whether MuJoCo met a
+        constraint on the way (a joint limit or a contact, where a chain loaded with ``"ignore"`` by
+        :func:`from_mjcf` has none). The data of :func:`optim.identify.identify`.
+    """
     mujoco = import_mujoco()
     model = compile_model(source)
     data = mujoco.MjData(model)
@@ -54,10 +82,21 @@ def mujoco_rollout(source, q0, qd0, controls):
 
 
 def solver_of(source):
-    """``(solver, timestep)``: the :mod:`lagrange.solvers` integrator that reproduces the model's ``mj_step`` and its
-    ``option/timestep`` [s]. MuJoCo's ``Euler`` (damping implicit, as ``eulerdamp`` leaves it) is
-    :class:`lagrange.SemiImplicitEuler`; its ``RK4`` is :class:`lagrange.RK4`. ``implicit``, ``implicitfast`` and
-    ``Euler`` with ``eulerdamp`` disabled on a damped model have no counterpart and raise ``NotImplementedError``."""
+    """The :mod:`lagrange.solvers` integrator that reproduces a model's ``mj_step``, and its time step.
+
+    MuJoCo's ``Euler`` (damping implicit, as ``eulerdamp`` leaves it) is :class:`lagrange.SemiImplicitEuler`; its
+    ``RK4`` is :class:`lagrange.RK4`.
+
+    Args:
+        source: a path, an MJCF string or a compiled ``mujoco.MjModel`` (:func:`compile_model`).
+
+    Returns:
+        ``(solver, timestep)``: the solver instance and the model's ``option/timestep`` [s].
+
+    Raises:
+        NotImplementedError: for ``implicit``, ``implicitfast``, and ``Euler`` with ``eulerdamp`` disabled on a
+            damped model, which have no counterpart.
+    """
     from lagrange.solvers import RK4, SemiImplicitEuler
 
     mujoco = import_mujoco()
