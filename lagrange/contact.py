@@ -17,8 +17,9 @@ direction is normalised (the ground's normal is constant), so ``d = 0``, ``vt = 
 forward- and reverse-mode derivatives. The parameters are arrays: ``jax.grad`` with respect to ``ke``, ``kd``, ``kf``,
 ``mu`` and ``ground`` works (contact system identification).
 
-This is DFlex's penalty model (NVlabs/DiffRL, ``dflex/dflex/sim.py``), not MuJoCo's soft-constraint solver; results
-compared with MuJoCo's contact agree in kind, not to round-off.
+This is DFlex's penalty model (NVlabs/DiffRL at commit 6b8d695, ``dflex/dflex/sim.py``, ``eval_rigid_contacts_art``),
+not MuJoCo's soft-constraint solver; results compared with MuJoCo's contact agree in kind, not to round-off. The docs'
+"Contact and joint limits" page says what differs from DFlex and from MuJoCo.
 """
 
 from __future__ import annotations
@@ -64,7 +65,7 @@ def scalar_parameter(cls: str, name: str, value, *, positive: bool = False):
 
 
 class PenaltyContact(eqx.Module):
-    """Ground contact by penalty forces (see the module docstring for the law).
+    """Ground contact by penalty forces, one law for every contact point of a chain (the law: the module docstring).
 
     Args:
         ke: contact stiffness [N/m], > 0.

@@ -24,7 +24,7 @@ nowhere else:
   (ABA, RNEA, CRBA as scans over the links), whose work grows like n rather than n^3.
 
 The tests check both against the literal derivation (Hessians of the Lagrangian,
-``benchmarks/oracles/euler_lagrange.py``) and hand-written closed forms.
+``oracles/euler_lagrange.py``) and hand-written closed forms.
 
 Shapes: ``n`` links, ``m`` actuated joints. Every function is pure, takes ``q``/``qd``/``u``/``qdd``
 with any leading batch dimensions ``*batch`` (broadcast against each other), and is safe under
@@ -227,7 +227,11 @@ def forward_dynamics_and_pivots(
     """:func:`forward_dynamics` without its check, and where it would raise.
 
     Args:
-        chain, q, qd, u, implicit_damping_dt: as for :func:`forward_dynamics`.
+        chain: the :class:`~lagrange.chain.Chain`.
+        q: joint coordinates [rad or m], shape ``(*batch, n)``.
+        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
+        u: controls, shape ``(*batch, m)``, or ``None`` (as for :func:`forward_dynamics`).
+        implicit_damping_dt: as for :func:`forward_dynamics` [s].
 
     Returns:
         ``(qdd, singular)``: ``qdd`` of shape ``(*batch, n)`` and ``singular`` of shape ``(*batch,)``, true where a

@@ -3,8 +3,8 @@
 Outside the range the joint gets the generalized force ``ke (bound - q) - kd qd`` (``bound`` the one it passed);
 inside it gets nothing. The spring's potential energy is ``1/2 ke (q - bound)^2``. Gradients are finite everywhere:
 the force is piecewise linear, and exactly on a bound it is the inside (zero) one. DFlex applies its limit damping at
-all times (its code's comment says otherwise); a task that must reproduce DFlex adds that damping to the joints'
-``damping`` instead and gives ``kd = 0`` here.
+all times (``jcalc_tau`` in NVlabs/DiffRL at commit 6b8d695, ``dflex/dflex/sim.py``; its comment says otherwise); a task
+that must reproduce DFlex adds that damping to the joints' ``damping`` instead and gives ``kd = 0`` here.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from lagrange.contact import scalar_parameter
 
 
 class PenaltyLimits(eqx.Module):
-    """Joint limits by penalty forces (see the module docstring).
+    """Joint limits by penalty forces, one law for every limited joint of a chain (the law: the module docstring).
 
     Args:
         ke: limit stiffness [N m/rad or N/m], > 0.

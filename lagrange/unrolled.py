@@ -93,19 +93,48 @@ def _stack(xs, like):
 
 
 def mass_matrix(chain: Chain, q):
-    """``M(q)``, shape ``(*batch, n, n)``."""
+    """The mass matrix ``M(q)``, written out entry by entry.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
+            folds them).
+        q: joint coordinates [rad or m], shape ``(*batch, n)``.
+
+    Returns:
+        ``M``, shape ``(*batch, n, n)`` [kg m^2, kg m or kg].
+    """
     M, _ = _terms(chain, q, None, mass=True, velocity=False, gravity=False)
     return to_array(M, q[..., 0], symmetric=True)
 
 
 def bias_forces(chain: Chain, q, qd):
-    """``C(q, qd) qd + T(q) + D qd + K (q - q_ref)``, shape ``(*batch, n)``."""
+    """The bias forces, written out joint by joint.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
+            folds them).
+        q: joint coordinates [rad or m], shape ``(*batch, n)``.
+        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
+
+    Returns:
+        ``C(q, qd) qd + T(q) + D qd + K (q - q_ref) - tau_limits - sum_s J_s^T f_s``, shape ``(*batch, n)``
+        [N m or N].
+    """
     _, f = _terms(chain, q, qd, mass=False, velocity=True, gravity=True)
     return _stack(f, q[..., 0])
 
 
 def gravity_forces(chain: Chain, q):
-    """``T(q)``, shape ``(*batch, n)``."""
+    """The generalized gravity forces, written out joint by joint.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
+            folds them).
+        q: joint coordinates [rad or m], shape ``(*batch, n)``.
+
+    Returns:
+        ``T(q) = dV/dq``, shape ``(*batch, n)`` [N m or N].
+    """
     _, f = _terms(chain, q, None, mass=False, velocity=False, gravity=True)
     return _stack(f, q[..., 0])
 
@@ -121,9 +150,22 @@ def _actuation(chain: Chain, u) -> list:
 
 
 def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, pivots: bool = False):
-    """``qdd = M^-1 (B u - C qd - T - D qd)``, shape ``(*batch, n)``; with ``implicit_damping_dt = h`` solved with
-    ``M + h diag(damping)``. With ``pivots=True`` it returns ``(qdd, singular)``, ``singular`` (shape ``*batch``) true
-    where a pivot of the factorisation of ``M`` (the determinant for n <= 3) is not positive or not finite."""
+    """Joint accelerations ``qdd = M^-1 (B u - bias)``, ``M qdd = rhs`` solved unrolled over scalars.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
+            folds them).
+        q: joint coordinates [rad or m], shape ``(*batch, n)``.
+        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
+        u: controls, shape ``(*batch, m)``, or ``None``.
+        implicit_damping_dt: ``h`` [s] to solve with ``M + h diag(damping)``, or ``None``.
+        pivots: also return where the solve fails.
+
+    Returns:
+        ``qdd`` of shape ``(*batch, n)`` [rad/s^2 or m/s^2]; with ``pivots=True``, ``(qdd, singular)``, ``singular``
+        (shape ``batch``) true where a pivot of the factorisation of ``M`` (the determinant for n <= 3) is not
+        positive or not finite.
+    """
     M, bias = _terms(chain, q, qd, mass=True, velocity=True, gravity=True)
     tau = _actuation(chain, u) if u is not None else [0.0] * chain.n
     # an unactuated joint's -bias keeps its sign symbolic (folded into the solve, see _scalar.negated)
@@ -140,7 +182,18 @@ def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, p
 
 
 def energy(chain: Chain, q, qd):
-    """``(kinetic, potential)`` [J], each of shape ``(*batch,)``, from the jets of :func:`lagrange.kinematics.frames`."""
+    """The kinetic and potential energy, from the jets of :func:`lagrange.kinematics.frames`.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
+            folds them).
+        q: joint coordinates [rad or m], shape ``(*batch, n)``.
+        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
+
+    Returns:
+        ``(kinetic, potential)`` [J], each of shape ``(*batch,)``; the potential is zero at the chain's origin and
+        includes the joint springs and the penalty springs of limits and contact.
+    """
     f = frames(chain, q, qd)
     like = q[..., 0]
     kin = 0.0

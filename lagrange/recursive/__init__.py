@@ -4,17 +4,15 @@ Call :mod:`lagrange.dynamics` (``forward_dynamics``, ``mass_matrix``, ...): it c
 the unrolled derivation (:mod:`lagrange.unrolled`) by the chain's size. One module per algorithm:
 :mod:`~lagrange.recursive.kinematics` (the links' angles, offsets and velocities, one scan outward),
 :mod:`~lagrange.recursive.rnea` (bias, gravity and inverse dynamics), :mod:`~lagrange.recursive.crba` (the mass
-matrix), :mod:`~lagrange.recursive.aba` (forward dynamics), :mod:`~lagrange.recursive.energies`, on the per-link
-arrays and scans of :mod:`~lagrange.recursive.tree`.
+matrix), :mod:`~lagrange.recursive.aba` (forward dynamics), :mod:`~lagrange.recursive.energies`, and
+:mod:`~lagrange.recursive.contact` (the contact and limit forces), on the per-link arrays and scans of
+:mod:`~lagrange.recursive.tree`.
 
-ABA, RNEA and CRBA on planar spatial vectors.
-
-The trace-time derivations of :mod:`lagrange.dynamics` write out every entry of ``M`` and solve
-``M qdd = rhs`` by elimination, so their work and their compiled program grow like n^3. Here the
-same equations are evaluated by Featherstone's recursive algorithms, with every per-link
-quantity held in arrays whose leading axis runs over the links: the compiled program has the
-same size for every n and the work is O(n) (forward dynamics, bias and gravity forces) or
-O(n^2) (the mass matrix).
+The unrolled derivation writes out every entry of ``M`` and solves ``M qdd = rhs`` by elimination, so its work and its
+compiled program grow like n^3. Here the same equations are evaluated by Featherstone's recursive algorithms (ABA,
+RNEA and CRBA) on planar spatial vectors, with every per-link quantity held in arrays whose leading axis runs over the
+links: the compiled program has the same size for every n and the work is O(n) (forward dynamics, bias and gravity
+forces) or O(n^2) (the mass matrix).
 
 Planar spatial algebra. A *motion* ``(w, vx, vz)`` is an angular velocity ``w = dphi/dt`` and
 the velocity of the body point at a reference point; a *force* ``(t, Fx, Fz)`` is a moment about
@@ -29,27 +27,30 @@ that point and a force. With ``perp(x, z) = (-z, x)`` (so ``d/dt d(phi) = w perp
   about it has the spatial inertia ``[[I + m|c|^2, m perp(c)^T], [m perp(c), m 1]]``.
 
 Body i's reference point is its joint origin ``p_i`` and every frame keeps the world's axes, so
-``X_i = X(r_i)`` with ``r_i = p_i - p_{i-1} = l_{i-1} d(phi_{i-1}) [+ q_i e(phi_{i-1} + axis_i)]``
-and the joint's motion subspace is ``S_i = (1, 0, 0)`` (revolute) or ``(0, e(phi_{i-1} + axis_i))``
-(prismatic). Gravity enters as the base acceleration ``a_0 = (0, 0, g)``. Then
+``X_i = X(r_i)`` with ``r_i = p_i - p_parent(i)`` (the attach point in the world's axes, plus
+``q_i e(phi_parent + axis_i)`` for a prismatic joint), and the joint's motion subspace is ``S_i = (sense_i, 0, 0)``
+(revolute) or ``(0, e(phi_parent + axis_i))`` (prismatic). Gravity enters as the base acceleration
+``a_0 = (0, 0, g)``. With ``parent(i)`` the link's parent (the world for a link of the world):
 
-- kinematics: ``v_i = X_i v_{i-1} + S_i qd_i`` and ``c_i = v_i x S_i qd_i``, with the link angles, their
+- kinematics: ``v_i = X_i v_parent(i) + S_i qd_i`` and ``c_i = v_i x S_i qd_i``, with the link angles, their
   sines and cosines and the joint offsets ``r_i``: one ``jax.lax.scan`` outward over the links;
-- RNEA: ``a_i = X_i a_{i-1} + S_i qdd_i + c_i``, ``f_i = I_i a_i + v_i x* I_i v_i``,
-  ``tau_i = S_i . sum_{k >= i} X_{i<-k}^T f_k`` (cumulative sums again);
-- CRBA: composite inertias ``Ic_i = I_i + X_{i+1}^T Ic_{i+1} X_{i+1}`` (cumulative sums of
-  mass, first and second moments), ``M_ij = S_j . X_{j<-i}^T Ic_i S_i`` for ``j <= i``;
-- ABA: inward, ``IA_i = I_i + X_{i+1}^T Ia_{i+1} X_{i+1}``, ``pA_i = v_i x* I_i v_i +
-  X_{i+1}^T pa_{i+1}``, ``U_i = IA_i S_i``, ``D_i = S_i . U_i + armature_i``,
+- RNEA: ``a_i = X_i a_parent(i) + S_i qdd_i + c_i``, ``f_i = I_i a_i + v_i x* I_i v_i``,
+  ``tau_i = S_i . sum_{k in i's subtree} X_{i<-k}^T f_k`` (sums along paths and over subtrees: cumulative sums on a
+  serial chain);
+- CRBA: composite inertias ``Ic_i = I_i + sum_{c a child of i} X_c^T Ic_c X_c``, ``M_ij = S_j . X_{j<-i}^T Ic_i S_i``
+  for ``j`` on ``i``'s path (zero where neither is on the other's path);
+- ABA: inward, ``IA_i = I_i + sum_{c a child of i} X_c^T Ia_c X_c``, ``pA_i = v_i x* I_i v_i +
+  sum_c X_c^T pa_c``, ``U_i = IA_i S_i``, ``D_i = S_i . U_i + armature_i``,
   ``u_i = tau_i - S_i . pA_i``, ``Ia_i = IA_i - U_i U_i^T / D_i``,
-  ``pa_i = pA_i + Ia_i c_i + U_i u_i / D_i``; outward, ``a'_i = X_i a_{i-1} + c_i``,
+  ``pa_i = pA_i + Ia_i c_i + U_i u_i / D_i``; outward, ``a'_i = X_i a_parent(i) + c_i``,
   ``qdd_i = (u_i - U_i . a'_i) / D_i``, ``a_i = a'_i + S_i qdd_i``. The two passes are
-  ``jax.lax.scan`` over the links, each step's inputs and outputs separate arrays of the batch's
-  shape. Armature and an implicit-damping term ``h damping_i`` add to ``D_i``, which is adding them
-  to ``M_ii``.
+  ``jax.lax.scan`` over the links (:class:`~lagrange.recursive.tree.Topology`: on a tree a link's carry comes from its
+  parent, or goes to it, through a few slots), each step's inputs and outputs separate arrays of the batch's
+  shape. Armature and an implicit-damping term ``h damping_i`` add to ``D_i``, which is adding them to ``M_ii``.
 
-Functions take ``q``/``qd``/``u`` with any leading batch dimensions (broadcast against each
-other) and return the same quantities as :mod:`lagrange.dynamics`.
+Contact forces enter as external spatial forces on the links (:mod:`~lagrange.recursive.contact`), the joints'
+springs, dampers and limits as generalized forces. Functions take ``q``/``qd``/``u`` with any leading batch dimensions
+(broadcast against each other) and return the same quantities as :mod:`lagrange.dynamics`.
 """
 
 from lagrange.recursive.aba import forward_dynamics

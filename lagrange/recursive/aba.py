@@ -25,7 +25,17 @@ from lagrange.recursive.tree import arrays, links_last, param, prepare, split_li
 
 
 def actuation(chain: Chain, u, batch, dtype):
-    """``B u`` as (n, *batch), or None without control."""
+    """The actuation's generalized forces ``B u``, links first.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`.
+        u: controls, shape ``(*batch, m)``, or ``None``.
+        batch: the batch shape.
+        dtype: the float type.
+
+    Returns:
+        ``B u`` of shape ``(n, *batch)`` [N m or N], ``u`` clamped into its ranges first; ``None`` without control.
+    """
     if u is None or chain.m == 0:
         return None
     u = clamp_controls(chain, jnp.asarray(u))
@@ -39,11 +49,21 @@ def actuation(chain: Chain, u, batch, dtype):
 
 
 def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, pivots: bool = False):
-    """``qdd = M^-1 (B u - C qd - T - D qd)`` by the articulated-body algorithm, shape (..., n).
+    """Joint accelerations ``qdd = M^-1 (B u - bias)`` by the articulated-body algorithm, in O(n).
 
-    With ``implicit_damping_dt = h`` it solves with ``M + h diag(damping)`` (``D_i += h b_i``). With
-    ``pivots=True`` it returns ``(qdd, singular)``: ``singular`` (shape ``batch``) is true where a
-    pivot ``D_i`` (the factorisation of ``M`` that ABA performs) is not positive or not finite.
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
+            folds them).
+        q: joint coordinates [rad or m], shape ``(*batch, n)``.
+        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
+        u: controls, shape ``(*batch, m)``, or ``None``.
+        implicit_damping_dt: ``h`` [s] to solve with ``M + h diag(damping)`` (``D_i += h b_i``), or ``None``.
+        pivots: also return where the factorisation fails.
+
+    Returns:
+        ``qdd`` of shape ``(*batch, n)`` [rad/s^2 or m/s^2]; with ``pivots=True``, ``(qdd, singular)``, ``singular``
+        (shape ``batch``) true where a pivot ``D_i`` (the factorisation of ``M`` that ABA performs) is not positive or
+        not finite.
     """
     u = None if (u is None or chain.m == 0) else u
     batch, dtype, q, qd = prepare(chain, q, qd, u)

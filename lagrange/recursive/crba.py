@@ -17,7 +17,16 @@ from lagrange.recursive.tree import next_link, param, prepare, rcumsum
 
 
 def mass_matrix(chain: Chain, q):
-    """``M(q)`` by the composite-rigid-body algorithm, shape (..., n, n); O(n^2) work."""
+    """The mass matrix ``M(q)`` by the composite-rigid-body algorithm, in O(n^2).
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
+            folds them).
+        q: joint coordinates [rad or m], shape ``(*batch, n)``.
+
+    Returns:
+        ``M``, shape ``(*batch, n, n)`` [kg m^2, kg m or kg].
+    """
     batch, _, q, _ = prepare(chain, q, None)
     k = LinkKinematics(chain, q, None, len(batch))
     tree = k.topology

@@ -26,7 +26,7 @@ class LinkKinematics:
     ``m``, ``h``, ``J``: mass, first moment ``m com d(phi_i)`` and inertia about ``p_i``;
     ``pA``: ``v_i x* I_i v_i``. Velocity terms are ``None`` when ``qd`` is.
 
-    Computed by one ``lax.scan`` outward over the links (segment by segment on a tree,
+    Computed by one ``lax.scan`` outward over the links (on a tree too, each link's carry coming from its parent,
     :meth:`lagrange.recursive.tree.Topology.scan_outward`): each step is a few dozen multiplies on
     arrays of the batch's shape, which XLA's CPU backend vectorises, where cumulative sums over the link axis
     (``reduce_window``) cost several times more. The link angles' sines and cosines come from the angle-addition

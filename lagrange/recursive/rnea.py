@@ -76,7 +76,18 @@ def _rnea(chain: Chain, k: LinkKinematics, qdd, gravity: bool):
 
 
 def bias_forces(chain: Chain, q, qd):
-    """``C(q, qd) qd + T(q) + D qd`` by RNEA at ``qdd = 0``, shape (..., n)."""
+    """The bias forces by RNEA at ``qdd = 0``, in O(n).
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
+            folds them).
+        q: joint coordinates [rad or m], shape ``(*batch, n)``.
+        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
+
+    Returns:
+        ``C(q, qd) qd + T(q) + D qd + K (q - q_ref) - tau_limits - sum_s J_s^T f_s``, shape ``(*batch, n)``
+        [N m or N].
+    """
     batch, _, q, qd = prepare(chain, q, qd)
     k = LinkKinematics(chain, q, qd, len(batch))
     f = _rnea(chain, k, None, gravity=True)
@@ -87,7 +98,16 @@ def bias_forces(chain: Chain, q, qd):
 
 
 def gravity_forces(chain: Chain, q):
-    """``T(q) = dV/dq`` by RNEA at rest, shape (..., n)."""
+    """The generalized gravity forces by RNEA at rest, in O(n).
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
+            folds them).
+        q: joint coordinates [rad or m], shape ``(*batch, n)``.
+
+    Returns:
+        ``T(q) = dV/dq``, shape ``(*batch, n)`` [N m or N].
+    """
     batch, _, q, _ = prepare(chain, q, None)
     if chain.gravity is None:
         return jnp.zeros(batch + (chain.n,), q.dtype)
@@ -95,7 +115,18 @@ def gravity_forces(chain: Chain, q):
 
 
 def inverse_dynamics(chain: Chain, q, qd, qdd):
-    """``M qdd + C qd + T + D qd`` by RNEA, shape (..., n)."""
+    """The generalized forces that produce ``qdd``, by RNEA, in O(n).
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
+            folds them).
+        q: joint coordinates [rad or m], shape ``(*batch, n)``.
+        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
+        qdd: joint accelerations [rad/s^2 or m/s^2], shape ``(*batch, n)``.
+
+    Returns:
+        ``M qdd`` plus the bias forces, shape ``(*batch, n)`` [N m or N].
+    """
     batch, dtype, q, qd = prepare(chain, q, qd, qdd)
     qdd = links_first(qdd.astype(dtype), batch)
     k = LinkKinematics(chain, q, qd, len(batch))
