@@ -8,7 +8,10 @@ by ``====`` and ``::`` before a literal block. mkdocstrings renders Markdown, so
 - a trailing ``::`` becomes ``:`` (the indented block after it is already a Markdown code block),
 - a field list (three or more lines ``name: text`` or ``a, b: text`` at one indent, continued by deeper lines;
   not a Google section such as ``Args:``, which mkdocstrings parses itself) becomes a bullet list,
-- ``] [`` outside code spans no longer reads as a Markdown reference link (``[1e-5] [lr_schedule = linear]``).
+- ``] [`` outside code spans no longer reads as a Markdown reference link (``[1e-5] [lr_schedule = linear]``),
+- the first paragraph is reflowed so that its first line is its first sentence: the API reference's summary tables
+  show a docstring's first line, and a sentence wrapped over two lines would be cut (the rendered paragraph is the
+  same, its lines being joined by Markdown).
 
 Loaded by ``mkdocs.yml`` (``extensions: [docs/_griffe_rst.py]``); the library's docstrings are not changed.
 """
@@ -155,6 +158,27 @@ def _field_lists(text: str) -> str:
 
 
 CODE = re.compile(r"(``.+?``|`[^`]+`)")
+SENTENCE_END = re.compile(r"[.!?] +(?=[A-Z`(:\\])")
+ABBREVIATIONS = ("e.g.", "i.e.", "etc.", "vs.", "cf.")
+
+
+def _first_sentence_first(text: str) -> str:
+    """``text`` with its first paragraph's lines joined and broken once, after its first sentence."""
+    lines = text.split("\n")
+    k = 0
+    while k < len(lines) and lines[k].strip():
+        k += 1
+    if k < 2 or lines[0].lstrip().startswith(("```", "-", "*", "|", "=", ">", "..")) or lines[0].startswith(" "):
+        return text
+    joined = " ".join(line.strip() for line in lines[:k])
+    masked = CODE.sub(lambda m: "x" * len(m.group()), joined)
+    for m in SENTENCE_END.finditer(masked):
+        head = joined[: m.start() + 1]
+        if head.endswith(ABBREVIATIONS):
+            continue
+        rest = joined[m.end():]
+        return "\n".join([head, rest, *lines[k:]])
+    return "\n".join([joined, *lines[k:]])
 
 
 def _no_reference_links(text: str) -> str:
@@ -174,7 +198,7 @@ class RstDocstrings(griffe.Extension):
         seen.add(obj.path)
         if obj.docstring is not None:
             text = obj.docstring.value
-            text = _field_lists(_literal_blocks(_tables(text)))
+            text = _field_lists(_literal_blocks(_tables(_first_sentence_first(text))))
             obj.docstring.value = _roles(obj, _no_reference_links(text))
         for member in obj.members.values():
             if not member.is_alias:
