@@ -24,12 +24,12 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float
 
-from lagrange.tasks import AbstractTask, TaskState, wrap
+from lagrange.tasks import AbstractPoleTask, TaskState, wrap
 
 __all__ = ["upright_state", "upright_deviation", "linearise", "lqr_gain", "saturated_lqr", "Basin", "basin"]
 
 
-def upright_state(task: AbstractTask) -> Float[np.ndarray, " 2*n"]:
+def upright_state(task: AbstractPoleTask) -> Float[np.ndarray, " 2*n"]:
     """``(q, qd)`` of the balanced chain at rest: the first pole's joint at pi, the rest (and any cart) at 0, in the
     chain's float type."""
     x = np.zeros(2 * task.chain.n, np.asarray(task.chain.mass).dtype)
@@ -37,7 +37,7 @@ def upright_state(task: AbstractTask) -> Float[np.ndarray, " 2*n"]:
     return x
 
 
-def upright_deviation(task: AbstractTask) -> Callable[[Array, Array], Float[Array, "*batch 2*n"]]:
+def upright_deviation(task: AbstractPoleTask) -> Callable[[Array, Array], Float[Array, "*batch 2*n"]]:
     """``deviation(q, qd) -> dx``: the state minus upright at rest, ``q``, ``qd`` (..., n) -> (..., 2n), with the
     joint angles wrapped to ``(-pi, pi]`` (a cart's position is not)."""
     n = task.chain.n
@@ -51,7 +51,7 @@ def upright_deviation(task: AbstractTask) -> Callable[[Array, Array], Float[Arra
     return deviation
 
 
-def linearise(task: AbstractTask, x0: ArrayLike | None = None, u0: ArrayLike | None = None
+def linearise(task: AbstractPoleTask, x0: ArrayLike | None = None, u0: ArrayLike | None = None
               ) -> tuple[Float[np.ndarray, "2*n 2*n"], Float[np.ndarray, "2*n m"]]:
     """``(A, B)``, float64: the Jacobians of one control interval ``task.step`` at ``x0`` (2n,) and ``u0`` (m,),
     ``x' ~ x0' + A (x - x0) + B (u - u0)``, by ``jax.jacfwd`` in the chain's float type. Defaults: upright at rest and
@@ -98,7 +98,7 @@ def lqr_gain(A: ArrayLike, B: ArrayLike, Q: ArrayLike, R: ArrayLike) -> Float[np
     return np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
 
 
-def saturated_lqr(task: AbstractTask, K: ArrayLike) -> Callable[[Array, Array], Float[Array, "*batch m"]]:
+def saturated_lqr(task: AbstractPoleTask, K: ArrayLike) -> Callable[[Array, Array], Float[Array, "*batch m"]]:
     """``controller(q, qd) -> u``: the LQR about upright saturated at the task's limit, ``clip(-K dx, -1, 1)``, with
     ``dx`` from :func:`upright_deviation`; ``q``, ``qd`` (..., n) -> (..., m). ``K`` (m, 2n): :func:`lqr_gain`'s."""
     n, m = task.chain.n, task.chain.m
@@ -124,7 +124,7 @@ class Basin(NamedTuple):
     """The largest lean up to which every lean tried recovered (0 if the smallest did not)."""
 
 
-def basin(task: AbstractTask, controller: Callable, *, leans: ArrayLike, steps: int, tol: float = 1e-3,
+def basin(task: AbstractPoleTask, controller: Callable, *, leans: ArrayLike, steps: int, tol: float = 1e-3,
           joints: tuple[int, ...] | None = None) -> Basin:
     """How far from upright ``controller(q, qd) -> u`` (m,) brings the chain back to rest. Each start is upright at
     rest with one joint leant by one of ``leans`` (rad, increasing; the first pole's joint leans the whole straight

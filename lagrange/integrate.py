@@ -28,8 +28,8 @@ from jaxtyping import Array, ArrayLike, Float
 
 from lagrange.chain import Chain, check_parameters
 from lagrange._linalg import spd_solver
-from lagrange.actuation import actuation_matrix
-from lagrange.dynamics import energy, forward_dynamics, gravity_forces, mass_matrix
+from lagrange.actuation import actuation_matrix, clamp_controls
+from lagrange.dynamics import bias_forces, energy, forward_dynamics, gravity_forces, mass_matrix
 from lagrange.solvers import RK4, SemiImplicitEuler, SymplecticEuler, check_solver, is_adaptive_capable
 
 
@@ -163,7 +163,8 @@ def _fixed_substep(chain: Chain, solver, h, q, qd, u):
     if isinstance(solver, SymplecticEuler):
         return _symplectic_euler_step(chain, solver.iterations, h, q, qd, u)
     if isinstance(solver, SemiImplicitEuler):
-        qdd = forward_dynamics(chain, q, qd, u, implicit_damping_dt=h, check=False)
+        qdd = forward_dynamics(chain, q, qd, u, implicit_damping_dt=h if solver.implicit_damping else None,
+                               check=False)
         qd1 = qd + h * qdd
         return q + h * qd1, qd1
 
@@ -174,6 +175,30 @@ def _fixed_substep(chain: Chain, solver, h, q, qd, u):
         qdd = f((q, qd))[1]
         return q + h * qd, qd + h * qdd
     return _erk_step(f, solver.tableau, h, (q, qd))
+
+
+def _held_mass_matrix_interval(chain: Chain, solver: SemiImplicitEuler, h, substeps: int):
+    """Semi-implicit Euler with ``M`` (``+ h diag(damping)`` with implicit damping) formed and Cholesky-factored once
+    at the interval's start and used by every substep; the forces ``B u - bias`` of every substep's own state. (An
+    LDL^T unrolled over the entries ran as fast and compiled 4x longer for the cheetah's 9 dof.)"""
+
+    def interval(q, qd, u):
+        M = mass_matrix(chain, q)
+        if solver.implicit_damping and chain.damping is not None:
+            M = M + h * jnp.diag(chain.damping)
+        solve = spd_solver(M)
+        Bu = 0.0 if u is None or not chain.m else jnp.einsum("ij,...j->...i", actuation_matrix(chain),
+                                                             clamp_controls(chain, u))
+
+        def body(carry, _):
+            q, qd = carry
+            qdd = solve(Bu - bias_forces(chain, q, qd))
+            qd1 = qd + h * qdd
+            return (q + h * qd1, qd1), None
+
+        return jax.lax.scan(body, (q, qd), None, length=substeps)[0]
+
+    return interval
 
 
 def _interval(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps):
@@ -192,6 +217,9 @@ def _interval(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps):
     if isinstance(solver, (SemiImplicitEuler, SymplecticEuler)) and adjoint is not None:
         raise ValueError(f"{type(solver).__name__} runs outside diffeqsolve; pass adjoint=None")
     h = dt / substeps
+
+    if isinstance(solver, SemiImplicitEuler) and solver.hold_mass_matrix:
+        return _held_mass_matrix_interval(chain, solver, h, substeps)
 
     if not adaptive and adjoint is None:
 

@@ -157,3 +157,18 @@ def tip_positions(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array,
         [jnp.stack([s.as_array(t[0].v, like), s.as_array(t[1].v, like)], axis=-1) for t in f.tips],
         axis=-2,
     )
+
+
+def contact_point_positions(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch k 2"]:
+    """The contact points (``Link(contacts=...)``, their centres, not lowered by the radius) [m] as (x, z) rows,
+    shape ``(*batch, k, 2)``, at joint coordinates ``q`` [rad or m] of shape ``(*batch, n)``; ``k = 0`` for a chain
+    without contact points. Point ``k`` belongs to link ``chain.contact_links[k]``, radius
+    ``chain.contact_points[k, 2]``."""
+    points = [] if chain.contact_points is None else [(i, p[0], p[1]) for i, p in zip(chain.contact_links,
+                                                                                       chain.contact_points)]
+    f = frames(chain, q, points=points)
+    like = q[..., 0]
+    if not points:
+        return jnp.zeros(jnp.shape(like) + (0, 2), jnp.result_type(like))
+    return jnp.stack([jnp.stack([s.as_array(x.v, like), s.as_array(z.v, like)], axis=-1) for x, z in f.points],
+                     axis=-2)

@@ -1,6 +1,8 @@
-"""Pictures of a task episode: angles, velocities and actuation over time (PNG), and the chain moving (GIF).
+"""Pictures of a task episode: angles, velocities and actuation over time (PNG), and the chain moving (GIF); for the
+locomotion tasks the gait (:func:`gait_figure`, :func:`gait_animation`: the body's capsules on the ground).
 
-Used by the examples (``swingup.png``, ``swingup.gif``) and by research scripts that draw an episode. Built on
+Used by the examples (``swingup.png``, ``swingup.gif``, ``gait.png``, ``gait.gif``) and by research scripts that
+draw an episode. Built on
 ``matplotlib.figure.Figure`` rather than ``pyplot``, so drawing never picks a backend or opens a window, and works
 headless. Not imported by ``import lagrange`` (matplotlib is only loaded when a picture is drawn).
 """
@@ -13,13 +15,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from lagrange.kinematics import positions
-from lagrange.tasks import AbstractTask, TaskState, balanced
+from lagrange.kinematics import contact_point_positions, positions
+from lagrange.tasks import AbstractPoleTask, AbstractTask, TaskState, balanced
 
-__all__ = ["episode_figure", "episode_animation"]
+__all__ = ["episode_figure", "episode_animation", "gait_figure", "gait_animation"]
 
 
-def episode_figure(task: AbstractTask, q, actions, path: str, *, qd=None, title: str | None = None,
+def episode_figure(task: AbstractPoleTask, q, actions, path: str, *, qd=None, title: str | None = None,
                    marks: Sequence[tuple[float, str]] = ()) -> None:
     """Draw an episode to ``path`` (PNG): the task's angles (the cart's position on its own axis), the angular
     velocities when ``qd`` is given, and the actuator's force or torque.
@@ -67,7 +69,7 @@ def episode_figure(task: AbstractTask, q, actions, path: str, *, qd=None, title:
     fig.savefig(path, dpi=110)
 
 
-def episode_animation(task: AbstractTask, q, path: str, *, every: int | None = None) -> None:
+def episode_animation(task: AbstractPoleTask, q, path: str, *, every: int | None = None) -> None:
     """Animate the chain through the coordinates ``q`` (T + 1, n) to ``path`` (GIF, one frame every ``every``
     control steps; default about 20 frames per simulated second)."""
     from matplotlib import animation
@@ -92,5 +94,91 @@ def episode_animation(task: AbstractTask, q, path: str, *, every: int | None = N
         text.set_text(f"t = {i * every * task.dt:4.2f} s")
         return line, text
 
+    anim = animation.FuncAnimation(fig, frame, frames=pts.shape[0], blit=False)
+    anim.save(path, writer=animation.PillowWriter(fps=int(round(1 / (every * task.dt)))))
+
+
+def gait_figure(task: AbstractTask, q, actions, path: str, *, rewards=None, title: str | None = None) -> None:
+    """Draw a locomotion episode to ``path`` (PNG): the root's x position and height, the torso's pitch, the rewards
+    when given, and the actions, against time.
+
+    Args:
+        task: a locomotion task (``q[0:3]`` the root's x, height and pitch).
+        q: the visited coordinates, shape ``(T + 1, n)``.
+        actions: the actions in ``[-1, 1]``, shape ``(T, m)``.
+        path: the PNG file.
+        rewards: the rewards, shape ``(T,)``, or None.
+        title: the title; default the task's name and the distance run.
+    """
+    from matplotlib.figure import Figure
+
+    q, actions = np.asarray(q), np.asarray(actions)
+    t = np.arange(q.shape[0]) * task.dt
+    panels = 4 if rewards is not None else 3
+    fig = Figure(figsize=(7, 1.8 * panels))
+    axes = fig.subplots(panels, 1, sharex=True)
+    axes[0].plot(t, q[:, 0], label="x [m]")
+    axes[0].plot(t, q[:, 1], label="height above start [m]")
+    axes[0].legend(fontsize=7, loc="upper left")
+    axes[1].plot(t, q[:, 2], color="tab:green")
+    axes[1].set_ylabel("pitch [rad]")
+    if rewards is not None:
+        axes[2].plot(t[1:], np.asarray(rewards), color="tab:purple", lw=0.8)
+        axes[2].set_ylabel("reward")
+    axes[-1].plot(t[1:], actions, lw=0.6)
+    axes[-1].set_ylabel("actions")
+    axes[-1].set_xlabel("time [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    axes[0].set_title(title or f"{task.name}: {q[-1, 0] - q[0, 0]:.1f} m in {t[-1]:.1f} s")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def gait_animation(task: AbstractTask, q, path: str, *, every: int | None = None, width: float = 4.0) -> None:
+    """Animate a robot on the ground through the coordinates ``q`` (T + 1, n) to ``path`` (GIF): each link's capsules
+    (pairs of its contact points, drawn with their radius), the ground, the view following the root.
+
+    Args:
+        task: a task whose chain has contact points (the locomotion tasks).
+        q: the coordinates, shape ``(T + 1, n)``.
+        path: the GIF file.
+        every: one frame every ``every`` control steps (default: about 20 frames per simulated second).
+        width: the view's width [m].
+    """
+    from matplotlib import animation
+    from matplotlib.figure import Figure
+
+    chain = task.chain
+    if chain.contact_points is None:
+        raise ValueError("gait_animation draws a chain's capsules from its contact points; this chain has none")
+    every = every or max(1, int(round(0.05 / task.dt)))
+    q = np.asarray(q)[::every]
+    pts = np.asarray(jax.vmap(lambda x: contact_point_positions(chain, x))(jnp.asarray(q)))
+    radius = np.asarray(chain.contact_points)[:, 2]
+    links = np.asarray(chain.contact_links)
+    capsules = [(k, k + 1) for k in range(0, len(links) - 1, 2) if links[k] == links[k + 1]]
+    ground = float(chain.contact.ground)
+    top = float(np.max(pts[..., 1])) + 0.2
+    fig = Figure(figsize=(6, 6 * (top - ground + 0.3) / width))
+    ax = fig.subplots()
+    ax.set_aspect("equal")
+    ax.set_ylim(ground - 0.1, top)
+    ax.axhspan(ground - 1.0, ground, color="0.85")
+    scale = fig.dpi * 6 / width * 0.72  # points per metre at this figure width
+    lines = [ax.plot([], [], lw=2 * radius[a] * scale, solid_capstyle="round", color="tab:blue")[0]
+             for a, b in capsules]
+    marks = [ax.axvline(x, color="0.7", lw=0.5) for x in np.arange(-50, 200, 1.0)]
+    text = ax.text(0.02, 0.95, "", transform=ax.transAxes, fontsize=8, va="top")
+
+    def frame(i):
+        centre = float(q[i, 0])
+        ax.set_xlim(centre - width / 2, centre + width / 2)
+        for line, (a, b) in zip(lines, capsules):
+            line.set_data(pts[i, [a, b], 0], pts[i, [a, b], 1])
+        text.set_text(f"t = {i * every * task.dt:4.2f} s, x = {centre:5.2f} m")
+        return lines + [text]
+
+    del marks
     anim = animation.FuncAnimation(fig, frame, frames=pts.shape[0], blit=False)
     anim.save(path, writer=animation.PillowWriter(fps=int(round(1 / (every * task.dt)))))

@@ -46,12 +46,28 @@ class SemiImplicitEuler(eqx.Module):
     It updates velocities, not momenta, so it is symplectic (bounded energy error) only where
     ``M`` is constant, e.g. a single pendulum or a cart; on a double pendulum its energy error
     drifts (measured: -0.48 of the energy above rest over 1e5 steps of 1e-3 s, see
-    ``tests/lagrange/test_stability.py``). It is here because it is exactly MuJoCo's and Brax's step.
+    ``tests/lagrange/test_stability.py``). It is here because it is exactly MuJoCo's, Brax's and DFlex's step.
 
-    ``qd' = qd + h qdd``, ``q' = q + h qd'``, where joint damping enters the velocity update
-    implicitly: ``(M + h diag(damping)) qdd = B u - C qd - T - damping qd``. This is MuJoCo's
+    ``qd' = qd + h qdd``, ``q' = q + h qd'``. By default joint damping enters the velocity update
+    implicitly: ``(M + h diag(damping)) qdd = B u - C qd - T - damping qd``, MuJoCo's
     ``integrator="Euler"`` and Brax's generalized pipeline, step for step.
+
+    Attributes:
+        implicit_damping (bool): treat joint damping implicitly (MuJoCo, Brax); ``False``: explicitly with every
+            other force (DFlex); static.
+        hold_mass_matrix (bool): form and factor ``M`` once per control interval, at its start, and use it for
+            every substep of the interval (DFlex's ``MM_caching_frequency`` equal to its substeps, as the SHAC
+            configs run it); the forces are evaluated every substep. ``False`` (the default): ``M`` of every
+            substep's own state; static.
     """
+
+    implicit_damping: bool = eqx.field(static=True, default=True)
+    hold_mass_matrix: bool = eqx.field(static=True, default=False)
+
+    def __check_init__(self):
+        for name in ("implicit_damping", "hold_mass_matrix"):
+            if not isinstance(getattr(self, name), bool):
+                raise TypeError(f"SemiImplicitEuler.{name} must be True or False, got {getattr(self, name)!r}")
 
     def order(self, terms=None):
         return 1

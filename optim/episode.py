@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, PRNGKeyArray
 
-from lagrange.tasks import AbstractTask, balanced
+from lagrange.tasks import AbstractTask
 from policies import Normalizer
 
 __all__ = ["Episode", "episode", "evaluate"]
@@ -37,7 +37,9 @@ class Episode(NamedTuple):
 
 def episode(task: AbstractTask, policy, normalizer: Normalizer | None, key: PRNGKeyArray, *,
             truncation: int | None = None) -> Episode:
-    """Roll ``policy`` out for ``task.horizon`` steps from ``task.reset(key)``.
+    """Roll ``policy`` out for ``task.horizon`` steps from ``task.reset(key)``; an episode that ends early
+    (``task.terminated``) counts the reward of the transition that ended it and nothing after, its state frozen
+    from there.
 
     The policy sees ``normalizer(obs)`` when a normaliser is given. Its hidden state starts at zeros and is reset at
     step 0. Unbatched: ``jax.vmap`` it over keys.
@@ -56,19 +58,24 @@ def episode(task: AbstractTask, policy, normalizer: Normalizer | None, key: PRNG
     h0 = policy.initial_state()
 
     def body(carry, t):
-        s, h = carry
+        s, h, alive = carry
         obs = task.observe(s)
         x = obs if normalizer is None else normalizer(obs)
         a, h = policy(x, h, t == 0)
         s2 = task.step(s, a)
         r = task.reward(s, a, s2)
+        ended = task.terminated(s2)
+        if isinstance(ended, jax.core.Tracer) or bool(ended):  # a task that can end early: nothing counts after
+            r = jnp.where(alive, r, jnp.zeros_like(r))
+            s2 = jax.tree_util.tree_map(lambda new, old: jnp.where(alive, new, old), s2, s)
+            alive = alive & ~ended
         if truncation is not None:
             cut = (t + 1) % truncation == 0
             s2 = jax.tree_util.tree_map(lambda v: jnp.where(cut, jax.lax.stop_gradient(v), v), s2)
             h = jnp.where(cut, jax.lax.stop_gradient(h), h)
-        return (s2, h), (r, obs, a, s2.q, s2.qd)
+        return (s2, h, alive), (r, obs, a, s2.q, s2.qd)
 
-    _, (r, obs, a, q, qd) = jax.lax.scan(body, (s0, h0), jnp.arange(task.horizon))
+    _, (r, obs, a, q, qd) = jax.lax.scan(body, (s0, h0, jnp.ones((), bool)), jnp.arange(task.horizon))
     q = jnp.concatenate([s0.q[None], q])
     qd = jnp.concatenate([s0.qd[None], qd])
     return Episode(jnp.sum(r), r, obs, a, q, qd)
@@ -86,9 +93,10 @@ def evaluate(task: AbstractTask, policy, normalizer: Normalizer | None, key: PRN
         episodes: how many episodes.
 
     Returns:
-        ``(returns, balanced)``, each of shape ``(episodes,)`` (:func:`lagrange.tasks.balanced`).
+        ``(returns, succeeded)``, each of shape ``(episodes,)`` (``task.succeeded``: the poles balanced, for a
+        pole task; no early end, for a task that can end early).
     """
     if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
         raise ValueError(f"evaluate: episodes must be an integer >= 1, got {episodes!r}")
     eps = jax.vmap(lambda k: episode(task, policy, normalizer, k))(jax.random.split(key, episodes))
-    return eps.ret, balanced(task, eps.q)
+    return eps.ret, task.succeeded(eps.q)

@@ -125,3 +125,23 @@ def test_shac_example_runs_and_writes_its_results(tmp_path):
     assert res["epochs"] == 2 and res["eval_episodes"] == 16 and 0.0 <= res["balanced_fraction"] <= 1.0
     assert res["env_steps"] == 2 * res["config"]["num_envs"] * res["config"]["short_horizon"]  # epochs x envs x h
     assert (tmp_path / "learning_curve.png").stat().st_size > 0
+
+
+def test_locomotion_examples_run_and_write_their_results(tmp_path):
+    """examples/hopper_shac.py end to end on one epoch (the cheetah's shares the driver: its flags only): every
+    artefact, and results.json's documented fields."""
+    env = dict(os.environ, MPLBACKEND="Agg")
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "examples", "hopper_shac.py"), "--quick", "--iterations",
+                           "1", "--eval-every", "1", "--out", str(tmp_path), "--no-progress"],
+                          capture_output=True, text=True, env=env, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    for name in ("checkpoint.eqx", "results.json", "learning_curve.png", "gait.png", "gait.gif"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    res = json.loads((tmp_path / "results.json").read_text())
+    assert res["task"] == "hopper" and res["epochs"] == 1 and res["eval_episodes"] == 16
+    assert res["env_steps"] == res["config"]["num_envs"] * res["config"]["short_horizon"]
+    assert res["wall_clock_s"] > 0 and res["total_s"] >= res["wall_clock_s"] and res["anchor_return"] == 4800.0
+    assert 0.0 <= res["succeeded_fraction"] <= 1.0 and len(res["curve"]) == 2
+    out = _run("--help", example="cheetah_shac.py").stdout
+    for flag in ("--seed", "--iterations", "--out", "--resume", "--quick", "--no-progress", "--overwrite"):
+        assert flag in out, flag

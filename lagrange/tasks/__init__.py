@@ -8,15 +8,18 @@ A task is an immutable :class:`equinox.Module` with pure methods ``reset(key)``,
   :class:`ChainSwingup` for a revolute chain of one's own (:mod:`lagrange.tasks.swingup`, with the integrator's error
   table); :data:`PAPER_TASKS` names the paper's three, :data:`BODY_SETS` their constructors.
 - :class:`DiffRLCartpole`, the SHAC authors' environment, NVlabs/DiffRL (:mod:`lagrange.tasks.diffrl_cartpole`).
+- :class:`Hopper` and :class:`Cheetah`, the SHAC paper's planar locomotion as DFlex runs it (``.diffrl()``;
+  :mod:`lagrange.tasks.locomotion`).
 - :func:`balanced`, :func:`upright_error` and :func:`leaves_upright` judge an episode
-  (:mod:`lagrange.tasks.balance`).
+  (:mod:`lagrange.tasks.poles`, with :class:`AbstractPoleTask`).
 
 Each final class documents its state, action, observation and reward in a table.
 """
 
-from lagrange.tasks.balance import balanced, leaves_upright, upright_error
 from lagrange.tasks.base import AbstractTask, TaskState, control_step, wrap
+from lagrange.tasks.poles import AbstractPoleTask, balanced, leaves_upright, upright_error
 from lagrange.tasks.diffrl_cartpole import POLE_INERTIA, DiffRLCartpole
+from lagrange.tasks.locomotion import AbstractLocomotion, Cheetah, Hopper
 from lagrange.tasks.swingup import (
     BODY_SETS,
     PAPER_TASKS,
@@ -29,6 +32,7 @@ from lagrange.tasks.swingup import (
 
 __all__ = [
     "AbstractTask",
+    "AbstractPoleTask",
     "TaskState",
     "control_step",
     "wrap",
@@ -40,6 +44,9 @@ __all__ = [
     "PAPER_TASKS",
     "BODY_SETS",
     "DiffRLCartpole",
+    "AbstractLocomotion",
+    "Hopper",
+    "Cheetah",
     "POLE_INERTIA",
     "balanced",
     "leaves_upright",

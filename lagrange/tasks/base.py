@@ -1,13 +1,12 @@
 """What every task is: a pure, immutable :class:`eqx.Module` over a chain.
 
-A task is ``reset(key) -> state``, ``step(state, action) -> state``, ``observe(state) -> obs`` and
+A task is ``reset(key) -> state``, ``step(state, action) -> state``, ``observe(state) -> obs``,
 ``reward(state, action, next_state) -> r`` (the reward of a transition is a function of the state it lands in, as in
-Brax). Nothing is stored between calls, so every method can be ``jit``-ed, ``vmap``-ed and differentiated.
+Brax) and ``terminated(state)`` (an episode that ends early, a hopper that fell). Nothing is stored between calls, so
+every method can be ``jit``-ed, ``vmap``-ed and differentiated. Actions ``a`` are clipped to ``[-1, 1]`` and
+multiplied by the chain's gear.
 
-Conventions. The chains of :mod:`lagrange.systems` hang down at ``q = 0`` and use *relative* joint angles. The tasks
-report angles wrapped to ``(-pi, pi]`` with 0 meaning upright for the first pole (``th1 = wrap(q1 - pi)``) and
-straight for later links (``th2 = wrap(q2)``). Actions ``a`` are clipped to ``[-1, 1]`` and multiplied by the
-chain's gear. A cart, where there is one, is ``q[0]``; the poles follow it (``first_pole``).
+The pole tasks (the swing-ups, the SHAC authors' cartpole) are :class:`lagrange.tasks.poles.AbstractPoleTask`s.
 """
 
 import abc
@@ -16,16 +15,17 @@ from typing import NamedTuple
 
 import diffrax
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from equinox import AbstractClassVar, AbstractVar
-from jaxtyping import Array, ArrayLike, Float, PRNGKeyArray
+from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
 from lagrange.chain import Chain
 from lagrange.integrate import step as _step
 from lagrange.solvers import SemiImplicitEuler, SymplecticEuler, check_solver
 
-__all__ = ["TaskState", "AbstractTask", "TaskSolver", "control_step", "wrap", "pole_orientations",
+__all__ = ["TaskState", "AbstractTask", "TaskSolver", "control_step", "wrap",
            "check_schedule", "check_joints", "check_number", "check_state", "check_chain"]
 
 TaskSolver = diffrax.AbstractSolver | SemiImplicitEuler | SymplecticEuler
@@ -54,9 +54,9 @@ class TaskState(NamedTuple):
 
 
 class AbstractTask(eqx.Module):
-    """A control task on a planar chain; every method is pure. Subclasses provide the fields and class variables
-    below, and ``reset``, ``observe``, ``reward`` and ``observation_size``; the dynamics (``step``) and the angle
-    readings are the same for every task.
+    """A control task on a planar chain or tree; every method is pure. Subclasses provide the fields and class
+    variables below, and ``reset``, ``observe``, ``reward`` and ``observation_size``; the dynamics (``step``) are the
+    same for every task.
 
     Attributes:
         chain (Chain): the chain.
@@ -64,7 +64,6 @@ class AbstractTask(eqx.Module):
         horizon (int): control steps per episode.
         substeps (int): steps of ``solver`` per control interval.
         solver (TaskSolver): the integrator (:mod:`lagrange.solvers`, or an explicit diffrax Runge-Kutta solver).
-        first_pole (ClassVar[int]): the index in ``q`` of the first pole's joint: 1 after a cart, else 0.
         name (ClassVar[str]): a display name for titles and results, never switched on.
     """
 
@@ -73,7 +72,6 @@ class AbstractTask(eqx.Module):
     horizon: AbstractVar[int]
     substeps: AbstractVar[int]
     solver: AbstractVar[TaskSolver]
-    first_pole: AbstractClassVar[int]
     name: AbstractClassVar[str]
 
     @abc.abstractmethod
@@ -113,16 +111,6 @@ class AbstractTask(eqx.Module):
         """Number of actions: the chain's actuated joints ``chain.m``."""
         return self.chain.m
 
-    @property
-    def cart(self) -> bool:
-        """Whether ``q[0]`` is a prismatic cart coordinate (``first_pole == 1``)."""
-        return self.first_pole == 1
-
-    @property
-    def n_links(self) -> int:
-        """Number of poles (revolute links)."""
-        return self.chain.n - self.first_pole
-
     def step(self, state: TaskState, action: Float[ArrayLike, " m"]) -> TaskState:
         """One control interval ``dt`` under ``clip(action, -1, 1)`` times the chain's gear (:func:`control_step`).
 
@@ -132,34 +120,28 @@ class AbstractTask(eqx.Module):
         """
         return control_step(self, state, action)
 
-    def angles(self, state: TaskState) -> Float[Array, " n_links"]:
-        """Pole angles [rad], wrapped, 0 = first pole upright / later links straight, shape ``(n_links,)``.
+    def terminated(self, state: TaskState) -> Bool[Array, ""]:
+        """Whether an episode ends early in ``state`` (after the transition that reached it, whose reward counts);
+        never, unless a task says otherwise.
 
         Args:
             state: one state (``jax.vmap`` over a batch).
         """
-        check_state(self, state)
-        rel = state.q[self.first_pole:]
-        offset = jnp.zeros_like(rel).at[0].set(jnp.pi)
-        return wrap(rel - offset)
+        return jnp.zeros((), bool)
 
-    def link_angles(self, state: TaskState) -> Float[Array, " n_links"]:
-        """Absolute pole orientations [rad], wrapped, 0 = pointing straight up, shape ``(n_links,)``.
-
-        Args:
-            state: one state (``jax.vmap`` over a batch).
-        """
-        check_state(self, state)
-        return pole_orientations(self, state.q)
-
-    def angular_velocities(self, state: TaskState) -> Float[Array, " n_links"]:
-        """Joint velocities of the poles [rad/s], relative as the angles are, shape ``(n_links,)``.
+    def succeeded(self, q: Float[ArrayLike, "*batch T n"]) -> Bool[Array, " *batch"]:
+        """Whether an episode met the task's goal, judged on its coordinates ``q`` (shape ``(*batch, T, n)``): here,
+        that it never terminated early; a task with a goal of its own says what (the pole tasks: balanced at the end,
+        :func:`lagrange.tasks.poles.balanced`).
 
         Args:
-            state: one state (``jax.vmap`` over a batch).
+            q: a trajectory of coordinates, shape ``(*batch, T, n)``.
         """
-        check_state(self, state)
-        return state.qd[self.first_pole:]
+        q = jnp.asarray(q)
+        zeros = jnp.zeros_like(q)
+        ended = jax.vmap(lambda qi, qdi: self.terminated(TaskState(qi, qdi)))(q.reshape(-1, q.shape[-1]),
+                                                                              zeros.reshape(-1, q.shape[-1]))
+        return ~jnp.any(ended.reshape(q.shape[:-1]), axis=-1)
 
 
 def control_step(task: AbstractTask, state: TaskState, action: Float[ArrayLike, " m"]) -> TaskState:
@@ -222,20 +204,6 @@ def check_chain(task: AbstractTask) -> None:
     """
     if not isinstance(task.chain, Chain):
         raise TypeError(f"{type(task).__name__}.chain must be a lagrange.Chain, got {type(task.chain).__name__}")
-
-
-def pole_orientations(task: AbstractTask, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch n_links"]:
-    """Absolute orientations of the poles [rad], wrapped to ``(-pi, pi]``, 0 = pointing straight up.
-
-    Args:
-        task: the task (its ``first_pole`` says where the poles start in ``q``).
-        q: coordinates, shape ``(*batch, n)`` (a state's, or a trajectory's).
-
-    Returns:
-        The sum of the joint angles from the base to each pole minus pi, wrapped, shape ``(*batch, n_links)``.
-    """
-    rel = q[..., task.first_pole:]
-    return wrap(jnp.cumsum(rel, axis=-1) - jnp.pi)
 
 
 def check_schedule(task: AbstractTask) -> None:

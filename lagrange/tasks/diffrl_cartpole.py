@@ -32,8 +32,9 @@ from jaxtyping import Array, ArrayLike, Float, PRNGKeyArray
 from lagrange import systems
 from lagrange.chain import Chain
 from lagrange.solvers import RK4
-from lagrange.tasks.base import (AbstractTask, TaskSolver, TaskState, check_joints, check_number, check_schedule,
+from lagrange.tasks.base import (TaskSolver, TaskState, check_joints, check_number, check_schedule,
                                  check_state, wrap)
+from lagrange.tasks.poles import AbstractPoleTask
 
 __all__ = ["DiffRLCartpole", "POLE_INERTIA"]
 
@@ -42,7 +43,7 @@ POLE_INERTIA = 2.5 * (1.0**2 + 0.05**2) / 12.0
 
 
 @final
-class DiffRLCartpole(AbstractTask):
+class DiffRLCartpole(AbstractPoleTask):
     """The SHAC authors' cartpole swing-up (NVlabs/DiffRL); build it with :meth:`diffrl`.
 
     =====================  ======================================================================================

@@ -50,8 +50,9 @@ from jaxtyping import Array, ArrayLike, Float, PRNGKeyArray
 from lagrange import systems
 from lagrange.chain import Chain
 from lagrange.solvers import RK4
-from lagrange.tasks.base import (AbstractTask, TaskSolver, TaskState, check_chain, check_joints, check_number,
+from lagrange.tasks.base import (TaskSolver, TaskState, check_chain, check_joints, check_number,
                                  check_schedule)
+from lagrange.tasks.poles import AbstractPoleTask
 
 __all__ = ["AbstractSwingup", "Acrobot", "Cartpole", "DoubleCartpole", "ChainSwingup", "PAPER_TASKS", "BODY_SETS"]
 
@@ -60,7 +61,7 @@ BODY_SETS = ("rods", "brax_v1")
 the CE-APG authors' Brax v1 bodies (``Acrobot.brax_v1()``, :data:`lagrange.systems.BRAX_V1`)."""
 
 
-class AbstractSwingup(AbstractTask):
+class AbstractSwingup(AbstractPoleTask):
     """A swing-up task of the CE-APG paper: the fields and the reset its tasks share (all but ``chain``
     keyword-only; the defaults are the paper's).
 
@@ -138,7 +139,7 @@ class AbstractSwingup(AbstractTask):
         return TaskState(q + start_q, qd + start_qd)
 
 
-def _observe(task: AbstractTask, state: TaskState, trig: bool) -> Float[Array, " observation_size"]:
+def _observe(task: AbstractPoleTask, state: TaskState, trig: bool) -> Float[Array, " observation_size"]:
     """``(x, th, dx, dth)``, or ``(x, sin th, cos th, dx, dth)`` with ``trig`` (``x, dx`` only with a cart)."""
     th, dth = task.angles(state), task.angular_velocities(state)
     x, dx = (state.q[:1], state.qd[:1]) if task.cart else (state.q[:0], state.qd[:0])
@@ -147,11 +148,11 @@ def _observe(task: AbstractTask, state: TaskState, trig: bool) -> Float[Array, "
     return jnp.concatenate([x, th, dx, dth])
 
 
-def _observation_size(task: AbstractTask, trig: bool) -> int:
+def _observation_size(task: AbstractPoleTask, trig: bool) -> int:
     return 3 * task.n_links + (2 if task.cart else 0) if trig else 2 * task.chain.n
 
 
-def _upright_reward(task: AbstractTask, next_state: TaskState) -> Float[Array, ""]:
+def _upright_reward(task: AbstractPoleTask, next_state: TaskState) -> Float[Array, ""]:
     """``10 - sum th^2 - 0.01 sum dth^2`` of ``next_state``."""
     th, dth = task.angles(next_state), task.angular_velocities(next_state)
     return 10.0 - jnp.sum(th**2) - 0.01 * jnp.sum(dth**2)

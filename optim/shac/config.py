@@ -93,6 +93,28 @@ class SHACConfig(AlgorithmConfig):
             raise ValueError(f"SHACConfig.critic_units must be a non-empty tuple of integers >= 1, got {units!r}")
         check_bool(c, "normalize", self.normalize)
 
+    @classmethod
+    def hopper(cls, **overrides) -> "SHACConfig":
+        """The authors' hopper config (``examples/cfg/shac/hopper.yaml``): 256 envs, 2000 epochs (16.4M env steps),
+        actor lr 2e-3, critic lr 2e-4; the rest as the defaults. The actor is ``policies.Actor.for_task(task,
+        units=(128, 64, 32))``.
+
+        Args:
+            overrides: fields to replace.
+        """
+        return dataclasses.replace(cls(num_envs=256, iterations=2000, actor_lr=2e-3, critic_lr=2e-4), **overrides)
+
+    @classmethod
+    def cheetah(cls, **overrides) -> "SHACConfig":
+        """The authors' cheetah config (``examples/cfg/shac/cheetah.yaml``): 64 envs, 2000 epochs (4.1M env steps),
+        actor and critic lr 2e-3; the rest as the defaults. The actor is ``policies.Actor.for_task(task,
+        units=(128, 64, 32))``.
+
+        Args:
+            overrides: fields to replace.
+        """
+        return dataclasses.replace(cls(num_envs=64, iterations=2000, actor_lr=2e-3, critic_lr=2e-3), **overrides)
+
     def env_steps_per_epoch(self) -> int:
         """Simulated control steps of one epoch, ``num_envs * short_horizon``."""
         return self.num_envs * self.short_horizon

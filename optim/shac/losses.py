@@ -85,7 +85,8 @@ def actor_loss(actor: Actor, target_critic: Critic, normalizer, task, env_state,
     """The SHAC actor loss of one window and its :class:`Window` (``has_aux`` style).
 
     Episodes that reach ``horizon`` inside the window are bootstrapped with the target critic's value of their last
-    state and reset, the gradient cut.
+    state and reset, the gradient cut; episodes that end early (``task.terminated``, a hopper that fell) are worth 0
+    after their last reward, as is a state whose observation is not finite (the authors' guard), and reset too.
 
     Args:
         actor: the actor whose samples act.
@@ -120,7 +121,13 @@ def actor_loss(actor: Actor, target_critic: Critic, normalizer, task, env_state,
         r = jax.vmap(task.reward)(s, a, s2)
         prog = prog + 1
         done = prog >= horizon
-        v = jax.vmap(target_critic)(norm(observe(s2)))
+        o2 = observe(s2)
+        v = jax.vmap(target_critic)(norm(o2))
+        ended = jax.vmap(task.terminated)(s2)
+        if isinstance(ended, jax.core.Tracer) or bool(jnp.any(ended)):  # a task that can end early
+            # an episode that ended early is worth nothing after; one cut by the time limit is bootstrapped
+            done = done | ended
+            v = jnp.where(ended | ~jnp.all(jnp.isfinite(o2), axis=-1), jnp.zeros_like(v), v)
         rew_acc = rew_acc + disc * r
         term = -rew_acc - gamma * disc * v
         closes = done | (i == short_horizon - 1)
