@@ -17,8 +17,16 @@ from lagrange.recursive.tree import param
 
 
 def contact_spots(chain: Chain, k: LinkKinematics):
-    """Per contact point (links first: ``(points, *batch)``): its link's index array, the lowest spot ``s`` (x, z)
-    and the offset ``s - p_i`` from the link's joint, from the kinematics ``k``."""
+    """Where each contact point's lowest spot is.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`.
+        k: the links' kinematics (:class:`~lagrange.recursive.kinematics.LinkKinematics`).
+
+    Returns:
+        ``(idx, sx, sz, rx, rz)``: each point's link index (``(points,)``), its lowest spot ``s`` (x, z) [m] and the
+        offset ``s - p_i`` from its link's joint [m], each ``(points, *batch)``.
+    """
     idx = np.asarray(chain.contact_links)
     tree = k.topology
     px, pz = tree.path_sum(k.rx), tree.path_sum(k.rz)
@@ -36,8 +44,16 @@ def contact_spots(chain: Chain, k: LinkKinematics):
 
 
 def contact_wrenches(chain: Chain, k: LinkKinematics):
-    """``(t, Fx, Fz)``, each ``(n, *batch)``: the contact forces on each link as a spatial force about its joint
-    ``p_i``; ``None`` without contact. Needs velocities in ``k``."""
+    """The contact forces on each link, as a spatial force about its joint.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`.
+        k: the links' kinematics (:class:`~lagrange.recursive.kinematics.LinkKinematics` with velocities).
+
+    Returns:
+        ``(t, Fx, Fz)``, each ``(n, *batch)``: the moment about ``p_i`` [N m] and the force [N] of the link's contact
+        points' penalty forces; ``None`` without contact.
+    """
     if chain.contact is None:
         return None
     idx, sx, sz, rx, rz = contact_spots(chain, k)
@@ -51,7 +67,15 @@ def contact_wrenches(chain: Chain, k: LinkKinematics):
 
 
 def contact_energy(chain: Chain, k: LinkKinematics):
-    """``sum_points 1/2 ke d^2`` [J], shape ``batch``; ``None`` without contact."""
+    """The contact springs' potential energy.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`.
+        k: the links' kinematics (:class:`~lagrange.recursive.kinematics.LinkKinematics`).
+
+    Returns:
+        ``sum_points 1/2 ke d^2`` [J], shape ``batch``; ``None`` without contact.
+    """
     if chain.contact is None:
         return None
     _, _, sz, _, _ = contact_spots(chain, k)
@@ -59,7 +83,16 @@ def contact_energy(chain: Chain, k: LinkKinematics):
 
 
 def limit_torques(chain: Chain, q, qd):
-    """The limits' generalized forces ``(n, *batch)`` (zero on the unlimited joints), or ``None`` without limits."""
+    """The limits' generalized forces.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`.
+        q: joint coordinates [rad or m], links first ``(n, *batch)``.
+        qd: joint velocities [rad/s or m/s], links first ``(n, *batch)``.
+
+    Returns:
+        ``tau_limits`` [N m or N], shape ``(n, *batch)`` (zero on the unlimited joints); ``None`` without limits.
+    """
     if chain.limits is None:
         return None
     idx = np.asarray(chain.limited)
@@ -70,7 +103,15 @@ def limit_torques(chain: Chain, q, qd):
 
 
 def limit_energy(chain: Chain, q):
-    """``sum_joints 1/2 ke (q - bound)^2`` [J] outside the ranges, shape ``batch``; ``None`` without limits."""
+    """The limit springs' potential energy.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`.
+        q: joint coordinates [rad or m], links first ``(n, *batch)``.
+
+    Returns:
+        ``sum_joints 1/2 ke (q - bound)^2`` [J] outside the ranges, shape ``batch``; ``None`` without limits.
+    """
     if chain.limits is None:
         return None
     idx = np.asarray(chain.limited)

@@ -19,12 +19,28 @@ from lagrange.recursive.tree import links_first, links_last, param, prepare
 
 
 def damping_force(chain: Chain, qd):
-    """``D qd`` (links first), or ``None`` for an undamped chain."""
+    """The joints' damping forces.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`.
+        qd: joint velocities [rad/s or m/s], links first ``(n, *batch)``.
+
+    Returns:
+        ``D qd`` [N m or N], shape ``(n, *batch)``; ``None`` for an undamped chain.
+    """
     return None if chain.damping is None else param(chain.damping, qd.ndim - 1) * qd
 
 
 def spring_force(chain: Chain, q):
-    """``K (q - q_ref)`` (links first), or ``None`` for a chain without joint springs."""
+    """The joint springs' forces.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`.
+        q: joint coordinates [rad or m], links first ``(n, *batch)``.
+
+    Returns:
+        ``K (q - q_ref)`` [N m or N], shape ``(n, *batch)``; ``None`` for a chain without joint springs.
+    """
     if chain.stiffness is None:
         return None
     nb = q.ndim - 1
@@ -32,8 +48,16 @@ def spring_force(chain: Chain, q):
 
 
 def passive_force(chain: Chain, q, qd):
-    """``D qd + K (q - q_ref) - tau_limits`` (links first): the joints' dampers, springs and limits, or ``None``
-    without any."""
+    """The joints' dampers, springs and limits, as one generalized force on the bias side.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`.
+        q: joint coordinates [rad or m], links first ``(n, *batch)``.
+        qd: joint velocities [rad/s or m/s], links first ``(n, *batch)``.
+
+    Returns:
+        ``D qd + K (q - q_ref) - tau_limits`` [N m or N], shape ``(n, *batch)``; ``None`` without any of them.
+    """
     out = damping_force(chain, qd)
     springs = spring_force(chain, q)
     if springs is not None:
