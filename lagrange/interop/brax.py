@@ -49,8 +49,9 @@ class PipelineState(NamedTuple):
 class BraxEnv(Env):
     """``task`` behind Brax's ``Env`` interface: ``reset(rng) -> State``, ``step(state, action) -> State``.
 
-    The observation, reward and dynamics are the task's; ``done`` is 1 after ``task.horizon`` steps
-    (``terminate_at_horizon=True``, the default) and 0 otherwise (the tasks never end early). The
+    The observation, reward and dynamics are the task's; ``done`` is 1 where the task ends early
+    (``task.terminated``, a hopper that fell), and after ``task.horizon`` steps (``terminate_at_horizon=True``,
+    the default). The
     step count lives in ``pipeline_state.t``, so Brax's ``AutoResetWrapper`` resets it with the rest of
     the state. With ``terminate_at_horizon=False`` the episode length is left to Brax's
     ``EpisodeWrapper`` (``episode_length=task.horizon`` in the trainers), which then flags the time
@@ -66,7 +67,8 @@ class BraxEnv(Env):
 
     Args:
         task: a task of :mod:`lagrange.tasks`.
-        terminate_at_horizon: ``done`` is 1 after ``task.horizon`` steps (True), or always 0 (False).
+        terminate_at_horizon: ``done`` is also 1 after ``task.horizon`` steps (True), or only at an early end
+            (False).
     """
 
     def __init__(self, task: AbstractTask, *, terminate_at_horizon: bool = True):
@@ -120,10 +122,12 @@ class BraxEnv(Env):
         s2 = self.task.step(s, action)
         reward = jnp.asarray(self.task.reward(s, action, s2), self._dtype)
         t = ps.t + 1
+        ended = self.task.terminated(s2)
+        can_end = isinstance(ended, jax.core.Tracer) or bool(ended)  # a task that can end early (a hopper that fell)
         if self.terminate_at_horizon:
-            done = (t >= self.task.horizon).astype(self._dtype)
+            done = ((t >= self.task.horizon) | ended if can_end else t >= self.task.horizon).astype(self._dtype)
         else:
-            done = jnp.zeros((), self._dtype)
+            done = ended.astype(self._dtype) if can_end else jnp.zeros((), self._dtype)
         obs = self.task.observe(s2).astype(self._dtype)
         return state.replace(pipeline_state=PipelineState(s2.q, s2.qd, t), obs=obs, reward=reward, done=done)
 

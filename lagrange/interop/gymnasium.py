@@ -35,8 +35,9 @@ class GymEnv(gym.Env):
       ``action_space``: ``Box(-1, 1, (task.action_size,), float32)`` (the task clips and scales by the gear).
     - ``reset(seed=..., options=None) -> (obs, {})``: the task's random start, drawn from a JAX key taken
       from the environment's ``np_random`` (so a seed reproduces the episode).
-    - ``step(action) -> (obs, reward, terminated, truncated, info)``: ``terminated`` is always False (the
-      tasks never end early); ``truncated`` becomes True after ``task.horizon`` steps. ``info`` holds the
+    - ``step(action) -> (obs, reward, terminated, truncated, info)``: ``terminated`` is the task's early end
+      (``task.terminated``: a hopper that fell; never for the swing-ups); ``truncated`` becomes True after
+      ``task.horizon`` steps. ``info`` holds the
       coordinates ``q`` and velocities ``qd`` (float64 NumPy arrays). The action must be a finite real array of
       shape ``(action_size,)``: None, NaN or another shape raise ``ValueError`` and leave the state as it was. A
       state that turns non-finite (the simulation blew up) ends the episode: ``truncated`` is True and
@@ -77,7 +78,7 @@ class GymEnv(gym.Env):
 
         def _step(s, a):
             s2 = task.step(s, a)
-            return s2, task.observe(s2), task.reward(s, a, s2)
+            return s2, task.observe(s2), task.reward(s, a, s2), task.terminated(s2)
 
         self._reset_fn = jax.jit(_reset)
         self._step_fn = jax.jit(_step)
@@ -122,7 +123,7 @@ class GymEnv(gym.Env):
             raise RuntimeError("GymEnv.step: the episode ended with a non-finite state (info['nonfinite']); call "
                                "reset() before stepping again")
         a = self._check_action(action)
-        self._state, obs, reward = self._step_fn(self._state, jnp.asarray(a, self._dtype))
+        self._state, obs, reward, terminated = self._step_fn(self._state, jnp.asarray(a, self._dtype))
         self._t += 1
         truncated = self._t >= self.task.horizon
         info = {"q": np.asarray(self._state.q, np.float64), "qd": np.asarray(self._state.qd, np.float64)}
@@ -131,7 +132,7 @@ class GymEnv(gym.Env):
             info["nonfinite"] = True
         with np.errstate(over="ignore", invalid="ignore"):  # a blown-up observation overflows float32: inf
             obs = np.asarray(obs, np.float32)
-        return obs, float(reward), False, bool(truncated), info
+        return obs, float(reward), bool(terminated), bool(truncated), info
 
     def _check_action(self, action) -> np.ndarray:
         shape = self.action_space.shape

@@ -121,3 +121,21 @@ def test_shac_configs_are_the_authors():
     assert (h.num_envs, h.iterations, h.actor_lr, h.critic_lr) == (256, 2000, 2e-3, 2e-4)
     assert (c.num_envs, c.iterations, c.actor_lr, c.critic_lr) == (64, 2000, 2e-3, 2e-3)
     assert h.iterations * h.env_steps_per_epoch() == 16_384_000 and c.iterations * c.env_steps_per_epoch() == 4_096_000
+
+
+def test_the_adapters_report_an_early_end():
+    """Brax's done and Gymnasium's terminated are the task's early end (PPO then values the fall at 0)."""
+    from lagrange.interop.brax import BraxEnv
+    from lagrange.interop.gymnasium import GymEnv
+
+    task = Hopper.diffrl()
+    low = Hopper.diffrl(termination_height=0.1)  # ends at once: the hopper starts at height 0 +- 0.05
+    env, env_low = BraxEnv(task, terminate_at_horizon=False), BraxEnv(low, terminate_at_horizon=False)
+    state = env.reset(jax.random.PRNGKey(0))
+    assert float(env.step(state, jnp.zeros(3)).done) == 0.0
+    assert float(env_low.step(state, jnp.zeros(3)).done) == 1.0
+    for t, expected in ((task, False), (low, True)):
+        gym_env = GymEnv(t)
+        gym_env.reset(seed=0)
+        _, _, terminated, truncated, _ = gym_env.step(np.zeros(3, np.float32))
+        assert terminated == expected and not truncated
