@@ -112,4 +112,3 @@ def spd_solver(A):
         return jax.lax.linalg.triangular_solve(L, y, left_side=True, lower=True, transpose_a=True)[..., 0]
 
     return solve
-

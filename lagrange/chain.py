@@ -51,6 +51,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
+from lagrange.checks import (check_every_joint_moves_something, check_laws, check_pair, check_parents, check_point,
+                             check_points, check_scalar, concrete, is_zero, stack, stack_points, value_of)
 from lagrange.contact import PenaltyContact
 from lagrange.limits import PenaltyLimits
 
@@ -59,88 +61,6 @@ JOINTS = ("revolute", "prismatic")
 
 WORLD = -1
 """The ``parent`` of a link that hangs from the world."""
-
-
-def _concrete(x):
-    """The value of ``x`` as a NumPy array, or ``None`` if it is traced (not known yet)."""
-    if isinstance(x, jax.core.Tracer):
-        return None
-    try:
-        return np.asarray(x, dtype=float)
-    except (TypeError, ValueError) as err:
-        raise TypeError(f"expected a real number, got {x!r} of type {type(x).__name__}") from err
-
-
-def _check_scalar(name: str, value, *, positive: bool = False, nonnegative: bool = False, optional: bool = False):
-    if value is None:
-        if optional:
-            return None
-        raise TypeError(f"Link.{name} must be a real number, got None")
-    if isinstance(value, (bool, np.bool_)) or isinstance(value, str):
-        raise TypeError(f"Link.{name} must be a real number, got {value!r}")
-    try:
-        c = _concrete(value)
-    except TypeError as err:
-        raise TypeError(f"Link.{name} must be a real number, got {value!r}") from err
-    if c is None:
-        return value
-    if c.shape != ():
-        raise ValueError(f"Link.{name} must be a scalar, got an array of shape {c.shape}")
-    v = float(c)
-    if not math.isfinite(v):
-        raise ValueError(f"Link.{name} must be finite, got {v}")
-    if positive and v <= 0:
-        raise ValueError(f"Link.{name} must be > 0, got {v}")
-    if nonnegative and v < 0:
-        raise ValueError(f"Link.{name} must be >= 0, got {v}")
-    return value
-
-
-def _pair(name: str, value) -> tuple[float, float] | None:
-    """``None`` or ``(lo, hi)`` as floats with ``lo < hi``, both finite, else an error naming ``Link.name``."""
-    if value is None:
-        return None
-    try:
-        lo, hi = (float(x) for x in value)
-    except (TypeError, ValueError) as err:
-        raise TypeError(f"Link.{name} must be a pair (lower, upper) of numbers or None, got {value!r}") from err
-    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-        raise ValueError(f"Link.{name} must be finite with lower < upper, got {value!r}")
-    return lo, hi
-
-
-def _points(name: str, value) -> tuple[tuple[float, float, float], ...]:
-    """A sequence of ``(x, z, radius)`` triples as floats (finite, radius >= 0), else an error naming ``Link.name``."""
-    try:
-        points = tuple(tuple(float(c) for c in p) for p in value)
-    except (TypeError, ValueError) as err:
-        raise TypeError(f"Link.{name} must be a sequence of points (x, z, radius), got {value!r}") from err
-    for k, p in enumerate(points):
-        if len(p) != 3:
-            raise ValueError(f"Link.{name}[{k}] must be a point (x, z, radius) of three numbers, got {p!r}")
-        if not all(math.isfinite(c) for c in p) or p[2] < 0:
-            raise ValueError(f"Link.{name}[{k}] must be finite with radius >= 0, got {p!r}")
-    return points
-
-
-def _check_point(name: str, value) -> None:
-    """``None`` or a pair of finite reals (a point ``(x, z)``), else a ``TypeError``/``ValueError`` naming ``name``."""
-    if value is None:
-        return
-    if isinstance(value, (str, bool, np.bool_)):
-        raise TypeError(f"Link.{name} must be a point (x, z) of two real numbers or None, got {value!r}")
-    if isinstance(value, jax.core.Tracer):
-        if jnp.shape(value) != (2,):
-            raise ValueError(f"Link.{name} must be a point (x, z) of shape (2,), got shape {jnp.shape(value)}")
-        return
-    try:
-        c = np.asarray([0.0 if isinstance(v, jax.core.Tracer) else _concrete(v) for v in list(value)], dtype=float)
-    except (TypeError, ValueError) as err:
-        raise TypeError(f"Link.{name} must be a point (x, z) of two real numbers or None, got {value!r}") from err
-    if c.shape != (2,):
-        raise ValueError(f"Link.{name} must be a point (x, z) of two real numbers, got shape {c.shape}")
-    if not np.all(np.isfinite(c)):
-        raise ValueError(f"Link.{name} must be finite, got {value!r}")
 
 
 class Link(eqx.Module):
@@ -231,8 +151,8 @@ class Link(eqx.Module):
             joint = str(joint)
         if not isinstance(joint, str) or joint not in JOINTS:
             raise ValueError(f"Link.joint must be one of {JOINTS}, got {joint!r}")
-        _check_scalar("axis", axis)
-        _check_scalar("offset", offset)
+        check_scalar("axis", axis)
+        check_scalar("offset", offset)
         if control_range is not None:
             try:
                 lo, hi = (float(x) for x in control_range)
@@ -269,29 +189,24 @@ class Link(eqx.Module):
         self.stiffness = stiffness
         self.springref = springref
         self.sense = int(sense)
-        self.range = _pair("range", range)
-        self.contacts = _points("contacts", contacts)
+        self.range = check_pair("range", range)
+        self.contacts = check_points("contacts", contacts)
 
     def __check_init__(self):
         if not isinstance(self.joint, str) or self.joint not in JOINTS:
             raise ValueError(f"Link.joint must be one of {JOINTS}, got {self.joint!r}")
-        _check_scalar("mass", self.mass, nonnegative=True)
-        _check_scalar("length", self.length, nonnegative=True)
-        _check_scalar("com", self.com, optional=True)
-        _check_scalar("inertia", self.inertia, nonnegative=True, optional=True)
-        _check_scalar("axis", self.axis)
-        _check_scalar("damping", self.damping, nonnegative=True)
-        _check_scalar("armature", self.armature, nonnegative=True)
-        _check_scalar("gear", self.gear, positive=True, optional=True)
-        _check_scalar("com_normal", self.com_normal)
-        _check_scalar("stiffness", self.stiffness, nonnegative=True)
-        _check_scalar("springref", self.springref)
-        _check_point("attach", self.attach)
-
-
-def _is_zero(x) -> bool:
-    c = _concrete(x)
-    return c is not None and float(c) == 0.0
+        check_scalar("mass", self.mass, nonnegative=True)
+        check_scalar("length", self.length, nonnegative=True)
+        check_scalar("com", self.com, optional=True)
+        check_scalar("inertia", self.inertia, nonnegative=True, optional=True)
+        check_scalar("axis", self.axis)
+        check_scalar("damping", self.damping, nonnegative=True)
+        check_scalar("armature", self.armature, nonnegative=True)
+        check_scalar("gear", self.gear, positive=True, optional=True)
+        check_scalar("com_normal", self.com_normal)
+        check_scalar("stiffness", self.stiffness, nonnegative=True)
+        check_scalar("springref", self.springref)
+        check_point("attach", self.attach)
 
 
 class Chain(eqx.Module):
@@ -397,67 +312,50 @@ class Chain(eqx.Module):
                 raise TypeError(f"Chain.links[{i}] must be a lagrange.chain.Link, got {type(link).__name__}")
         if gravity is None or isinstance(gravity, (bool, str)):
             raise TypeError(f"Chain.gravity must be a real number (use 0.0 for none), got {gravity!r}")
-        g = _concrete(gravity)
+        g = concrete(gravity)
         if g is not None:
             if g.shape != ():
                 raise ValueError(f"Chain.gravity must be a scalar, got shape {g.shape}")
             if not math.isfinite(float(g)):
                 raise ValueError(f"Chain.gravity must be finite, got {float(g)}")
-        parents = _parents(links)
-        _check_every_joint_moves_something(links, parents)
+        parents = check_parents(links)
+        check_every_joint_moves_something(links, parents)
 
         dtype = jax.dtypes.canonicalize_dtype(float)
-        self.mass = _stack([lk.mass for lk in links], dtype)
-        self.length = _stack([lk.length for lk in links], dtype)
-        self.com = _stack([_value(lk.length) / 2 if lk.com is None else lk.com for lk in links], dtype)
-        self.inertia = _stack(
-            [_value(lk.mass) * _value(lk.length) ** 2 / 12 if lk.inertia is None else lk.inertia for lk in links], dtype
+        self.mass = stack([lk.mass for lk in links], dtype)
+        self.length = stack([lk.length for lk in links], dtype)
+        self.com = stack([value_of(lk.length) / 2 if lk.com is None else lk.com for lk in links], dtype)
+        self.inertia = stack(
+            [value_of(lk.mass) * value_of(lk.length) ** 2 / 12 if lk.inertia is None else lk.inertia for lk in links], dtype
         )
         self.joints = tuple(lk.joint for lk in links)
         self.axes = tuple(float(lk.axis) for lk in links)
         self.offsets = tuple(float(lk.offset) for lk in links)
         self.com_normal = (
-            None if all(_is_zero(lk.com_normal) for lk in links) else _stack([lk.com_normal for lk in links], dtype)
+            None if all(is_zero(lk.com_normal) for lk in links) else stack([lk.com_normal for lk in links], dtype)
         )
         self.actuated = tuple(i for i, lk in enumerate(links) if lk.gear is not None)
-        self.damped = tuple(i for i, lk in enumerate(links) if not _is_zero(lk.damping))
-        self.armatured = tuple(i for i, lk in enumerate(links) if not _is_zero(lk.armature))
-        self.damping = _stack([lk.damping for lk in links], dtype) if self.damped else None
-        self.armature = _stack([lk.armature for lk in links], dtype) if self.armatured else None
-        self.gear = _stack([links[i].gear for i in self.actuated], dtype) if self.actuated else None
-        self.gravity = None if _is_zero(gravity) else _stack(gravity, dtype)
+        self.damped = tuple(i for i, lk in enumerate(links) if not is_zero(lk.damping))
+        self.armatured = tuple(i for i, lk in enumerate(links) if not is_zero(lk.armature))
+        self.damping = stack([lk.damping for lk in links], dtype) if self.damped else None
+        self.armature = stack([lk.armature for lk in links], dtype) if self.armatured else None
+        self.gear = stack([links[i].gear for i in self.actuated], dtype) if self.actuated else None
+        self.gravity = None if is_zero(gravity) else stack(gravity, dtype)
         ranges = tuple(links[i].control_range for i in self.actuated)
         self.control_ranges = ranges if any(r is not None for r in ranges) else None
         self.parents = parents
         self.attached = tuple(i for i, lk in enumerate(links) if lk.attach is not None)
-        self.attach = _stack_points([links[i].attach for i in self.attached], dtype) if self.attached else None
-        self.sprung = tuple(i for i, lk in enumerate(links) if not _is_zero(lk.stiffness))
-        self.stiffness = _stack([lk.stiffness for lk in links], dtype) if self.sprung else None
-        self.springref = _stack([lk.springref for lk in links], dtype) if self.sprung else None
+        self.attach = stack_points([links[i].attach for i in self.attached], dtype) if self.attached else None
+        self.sprung = tuple(i for i, lk in enumerate(links) if not is_zero(lk.stiffness))
+        self.stiffness = stack([lk.stiffness for lk in links], dtype) if self.sprung else None
+        self.springref = stack([lk.springref for lk in links], dtype) if self.sprung else None
         self.senses = tuple(lk.sense for lk in links)
         self.limited = tuple(i for i, lk in enumerate(links) if lk.range is not None)
-        self.ranges = _stack_points([links[i].range for i in self.limited], dtype) if self.limited else None
+        self.ranges = stack_points([links[i].range for i in self.limited], dtype) if self.limited else None
         self.contact_links = tuple(i for i, lk in enumerate(links) for _ in lk.contacts)
-        self.contact_points = (_stack_points([p for lk in links for p in lk.contacts], dtype)
+        self.contact_points = (stack_points([p for lk in links for p in lk.contacts], dtype)
                                if self.contact_links else None)
-        if contact is not None and not isinstance(contact, PenaltyContact):
-            raise TypeError(f"Chain.contact must be a lagrange.PenaltyContact or None, got {type(contact).__name__}")
-        if limits is not None and not isinstance(limits, PenaltyLimits):
-            raise TypeError(f"Chain.limits must be a lagrange.PenaltyLimits or None, got {type(limits).__name__}")
-        if (contact is None) != (not self.contact_links):
-            raise ValueError(
-                f"Chain: links {sorted(set(self.contact_links))} have contact points but the chain has no contact "
-                "law: pass Chain(..., contact=lagrange.PenaltyContact(ke, kd, kf, mu)), or drop the points"
-                if contact is None else
-                "Chain.contact is given but no link has contact points: give links Link(..., contacts=[(x, z, "
-                "radius), ...]), or drop contact")
-        if (limits is None) != (not self.limited):
-            raise ValueError(
-                f"Chain: links {list(self.limited)} have a range but the chain has no limit law: pass "
-                "Chain(..., limits=lagrange.PenaltyLimits(ke, kd)), or drop the ranges"
-                if limits is None else
-                "Chain.limits is given but no link has a range: give links Link(..., range=(lower, upper)), or drop "
-                "limits")
+        check_laws(contact, limits, self.contact_links, self.limited)
         self.contact, self.limits = contact, limits
 
     def frame_offsets(self) -> tuple[float, ...]:
@@ -535,245 +433,16 @@ class Chain(eqx.Module):
         out = []
         k = {j: i for i, j in enumerate(self.actuated)}
         at = {j: i for i, j in enumerate(self.attached)}
+        per = lambda x, i, default=0.0: default if x is None or i is None else x[i]  # noqa: E731
         for i, joint in enumerate(self.joints):
-            sprung = self.stiffness is not None
-            out.append(
-                Link(
-                    joint,
-                    self.mass[i],
-                    self.length[i],
-                    self.com[i],
-                    self.inertia[i],
-                    axis=self.axes[i],
-                    damping=0.0 if self.damping is None else self.damping[i],
-                    armature=0.0 if self.armature is None else self.armature[i],
-                    gear=None if i not in k else self.gear[k[i]],
-                    com_normal=0.0 if self.com_normal is None else self.com_normal[i],
-                    offset=self.offsets[i],
-                    control_range=None if (i not in k or self.control_ranges is None) else self.control_ranges[k[i]],
-                    parent=None if self.parents[i] == i - 1 else self.parents[i],
-                    attach=None if i not in at else self.attach[at[i]],
-                    stiffness=self.stiffness[i] if sprung else 0.0,
-                    springref=self.springref[i] if sprung else 0.0,
-                    sense=self.senses[i],
-                    range=None if i not in self.limited else tuple(float(x) for x in self.ranges[self.limited.index(i)]),
-                    contacts=tuple(tuple(float(x) for x in self.contact_points[k])
-                                   for k, link in enumerate(self.contact_links) if link == i),
-                )
-            )
+            ranges = None if (i not in k or self.control_ranges is None) else self.control_ranges[k[i]]
+            out.append(Link(
+                joint, self.mass[i], self.length[i], self.com[i], self.inertia[i], axis=self.axes[i],
+                damping=per(self.damping, i), armature=per(self.armature, i), gear=per(self.gear, k.get(i), None),
+                com_normal=per(self.com_normal, i), offset=self.offsets[i], control_range=ranges,
+                parent=None if self.parents[i] == i - 1 else self.parents[i], attach=per(self.attach, at.get(i), None),
+                stiffness=per(self.stiffness, i), springref=per(self.springref, i), sense=self.senses[i],
+                range=None if i not in self.limited else tuple(float(x) for x in self.ranges[self.limited.index(i)]),
+                contacts=tuple(tuple(float(x) for x in self.contact_points[c])
+                               for c, link in enumerate(self.contact_links) if link == i)))
         return tuple(out)
-
-
-def _parents(links: tuple[Link, ...]) -> tuple[int, ...]:
-    """Each link's parent index (-1: the world), checked to be the world or a link listed before it."""
-    out = []
-    for i, lk in enumerate(links):
-        p = i - 1 if lk.parent is None else lk.parent
-        if not WORLD <= p < i:
-            raise ValueError(
-                f"Chain.links[{i}].parent must be -1 (the world) or the index of a link listed before it (0..{i - 1}), "
-                f"got {p}: list every link after its parent (which also rules out cycles)"
-            )
-        out.append(p)
-    return tuple(out)
-
-
-def _value(x):
-    """``x`` as a NumPy array if it is concrete (so that arithmetic on it is not a JAX operation), else as it is."""
-    return x if isinstance(x, jax.core.Tracer) else np.asarray(x)
-
-
-def _stack(values, dtype):
-    """Per-link scalars (or one scalar) as a JAX array of ``dtype``: stacked in NumPy and transferred when every
-    value is concrete, which runs no JAX computation; with ``jax.numpy`` when one is traced."""
-    if isinstance(values, (list, tuple)):
-        if any(isinstance(v, jax.core.Tracer) for v in values):
-            return jnp.stack([jnp.asarray(v, dtype=dtype) for v in values])
-        return jax.device_put(np.stack([np.asarray(v, dtype=dtype) for v in values]))
-    if isinstance(values, jax.core.Tracer):
-        return jnp.asarray(values, dtype=dtype)
-    return jax.device_put(np.asarray(values, dtype=dtype))
-
-
-def _stack_points(points, dtype):
-    """Points ``(x, z)`` as a JAX array ``(k, 2)`` of ``dtype``, like :func:`_stack` (NumPy when all are concrete)."""
-    if any(isinstance(v, jax.core.Tracer) or any(isinstance(c, jax.core.Tracer) for c in v)
-           for v in points if not isinstance(v, jax.core.Tracer)) or any(isinstance(v, jax.core.Tracer) for v in points):
-        return jnp.stack([jnp.stack([jnp.asarray(c, dtype=dtype) for c in v]) if not isinstance(v, jax.core.Tracer)
-                          else jnp.asarray(v, dtype=dtype) for v in points])
-    return jax.device_put(np.stack([np.asarray([np.asarray(c, dtype=dtype) for c in v], dtype=dtype) for v in points]))
-
-
-def _on_axis(links: tuple[Link, ...], parents: tuple[int, ...], j: int, i: int, com) -> bool:
-    """Whether link ``i``'s centre of mass stays on revolute joint ``j``'s axis at every configuration: it sits on
-    its own joint (``com = 0``) and every joint on the path from ``j`` to it is revolute and sits on its parent's
-    joint (a parent of zero length, or an attach point at the parent's origin)."""
-    if com is None or float(com) != 0.0:
-        return False
-    k = i
-    while k != j:
-        p = parents[k]
-        attach = links[k].attach
-        at_origin = _is_zero(links[p].length) if attach is None else all(_is_zero(c) for c in attach)
-        if links[k].joint != "revolute" or not at_origin:
-            return False
-        k = p
-    return True
-
-
-def _subtree(parents: tuple[int, ...], j: int) -> list[int]:
-    """Link ``j`` and every link below it, in order."""
-    inside = {j}
-    for i in range(j + 1, len(parents)):
-        if parents[i] in inside:
-            inside.add(i)
-    return sorted(inside)
-
-
-def _check_every_joint_moves_something(links: tuple[Link, ...], parents: tuple[int, ...]) -> None:
-    """Raise if a joint's diagonal entry of the mass matrix is zero at every configuration (then so is its
-    determinant). ``M_jj = sum_{i below j} (m_i |dc_i/dq_j|^2 + I_i [joint j revolute]) + armature_j`` (``i`` over
-    ``j``'s subtree, ``j`` included): a prismatic joint moves the mass of every link of its subtree
-    (``|dc_i/dq_j| = 1``); a revolute one moves their inertia and every mass off its axis. A sum of non-negative terms,
-    so it vanishes identically exactly when each term does. A parameter not known yet (traced) counts as non-zero.
-    Checked on the parameters alone, without computing ``M``."""
-    mass = [_concrete(lk.mass) for lk in links]
-    length = [_concrete(lk.length) for lk in links]
-    com = [length[i] / 2 if lk.com is None and length[i] is not None else _concrete(lk.com) for i, lk in enumerate(links)]
-    # a centre of mass off the link's line is off every joint's axis
-    com = [c if _is_zero(lk.com_normal) else None for c, lk in zip(com, links)]
-    inertia = [
-        (mass[i] * length[i] ** 2 / 12 if mass[i] is not None and length[i] is not None else None)
-        if lk.inertia is None
-        else _concrete(lk.inertia)
-        for i, lk in enumerate(links)
-    ]
-
-    def zero(x):
-        return x is not None and float(x) == 0.0
-
-    for j, joint in enumerate(links):
-        if not _is_zero(joint.armature):
-            continue
-        tail = _subtree(parents, j)
-        if joint.joint == "prismatic":
-            if all(zero(mass[i]) for i in tail):
-                raise ValueError(
-                    f"Chain has a singular mass matrix: prismatic joint {j} moves no mass (links {tail} have zero "
-                    f"mass); give one of links {tail} a mass > 0 or joint {j} an armature > 0"
-                )
-            continue
-        massless = [i for i in tail if zero(mass[i]) and zero(inertia[i])]
-        on_axis = [i for i in tail if zero(inertia[i]) and not zero(mass[i]) and _on_axis(links, parents, j, i, com[i])]
-        if len(massless) + len(on_axis) == len(tail):
-            why = []
-            if massless:
-                why.append(f"links {massless} have zero mass and zero inertia")
-            if on_axis:
-                why.append(f"links {on_axis} have zero inertia and their centre of mass on joint {j}'s axis")
-            raise ValueError(
-                f"Chain has a singular mass matrix: revolute joint {j} moves no mass, inertia or armature "
-                f"({'; '.join(why)}); give one of links {tail} an inertia > 0 (or a mass off the joint's axis), "
-                f"or joint {j} an armature > 0"
-            )
-
-
-# what each parameter array must satisfy: (field, the rule's words, a predicate true where a value breaks it)
-_RULES = (
-    ("mass", ">= 0", lambda x: x < 0),
-    ("length", ">= 0", lambda x: x < 0),
-    ("inertia", ">= 0", lambda x: x < 0),
-    ("damping", ">= 0", lambda x: x < 0),
-    ("armature", ">= 0", lambda x: x < 0),
-    ("stiffness", ">= 0", lambda x: x < 0),
-    ("gear", "> 0", lambda x: ~(x > 0)),
-    ("com", "finite", lambda x: x != x),
-    ("com_normal", "finite", lambda x: x != x),
-    ("springref", "finite", lambda x: x != x),
-    ("attach", "finite", lambda x: x != x),
-    ("gravity", "finite", lambda x: x != x),
-    ("ranges", "finite", lambda x: x != x),
-    ("contact_points", "finite, radii >= 0", lambda x: (x < 0) & (np.arange(x.shape[-1]) == 2)),
-    ("contact.ke", "> 0", lambda x: ~(x > 0)),
-    ("contact.kd", ">= 0", lambda x: x < 0),
-    ("contact.kf", ">= 0", lambda x: x < 0),
-    ("contact.mu", ">= 0", lambda x: x < 0),
-    ("contact.ground", "finite", lambda x: x != x),
-    ("limits.ke", "> 0", lambda x: ~(x > 0)),
-    ("limits.kd", ">= 0", lambda x: x < 0),
-)
-
-
-def check_parameters(chain: Chain, *, at_run_time: bool = True) -> Chain:
-    """Check every parameter of a chain against its rule, including those that skipped the constructor.
-
-    The rules: masses, lengths, inertias, damping, armature and stiffness >= 0, gears > 0, the contact and limit
-    laws' parameters as their constructors require, everything finite. The parameters that did not pass through
-    :class:`Chain`'s constructor are those set by ``eqx.tree_at`` or traced under ``jit``/``grad``/``vmap`` (a fit's
-    parameters); every function of :mod:`lagrange.dynamics` calls this.
-
-    A concrete parameter is checked now, in NumPy; a traced one when it is computed, by ``eqx.branched_error_if``
-    tied to the returned chain's leaves (only with ``at_run_time=True``), which names the link. Either way the error
-    names the field, the link and the rule.
-
-    Args:
-        chain: the :class:`Chain`.
-        at_run_time: also check traced parameters at run time (a few comparisons per call).
-
-    Returns:
-        The chain (with the run-time checks tied to its traced parameters).
-
-    Raises:
-        ValueError: (now) for a concrete parameter that breaks its rule.
-        equinox.EquinoxRuntimeError: (when run) for a traced one.
-    """
-    updates = {}
-    for field, rule, broken in _RULES:
-        x = _get(chain, field)
-        if x is None:
-            continue
-        if not isinstance(x, jax.core.Tracer):
-            v = np.asarray(x, dtype=float)
-            bad = broken(v) | ~np.isfinite(v)
-            if np.any(bad):
-                where = np.argwhere(bad)[0]
-                index = _index_words(chain, field, where)
-                raise ValueError(f"Chain.{field}{index} must be {_words(rule)}, got {float(v[tuple(where)])!r} "
-                                 "(a value set after construction: by eqx.tree_at, or traced)")
-        elif at_run_time:
-            bad = (broken(x) | ~jnp.isfinite(x)).reshape(-1)
-            cells = [_index_words(chain, field, np.unravel_index(k, jnp.shape(x))) for k in range(bad.size)]
-            messages = [f"Chain.{field}{c} must be {_words(rule)} (a value traced or set after construction breaks it)"
-                        for c in cells]
-            updates[field] = eqx.branched_error_if(x, jnp.any(bad), jnp.argmax(bad), messages or [""])
-    for field, value in updates.items():
-        chain = eqx.tree_at(lambda c: _get(c, field), chain, value)
-    return chain
-
-
-def _get(chain: Chain, field: str):
-    """``chain.a.b`` for ``field = "a.b"``; ``None`` where a part is ``None``."""
-    x = chain
-    for part in field.split("."):
-        x = None if x is None else getattr(x, part)
-    return x
-
-
-def _words(rule: str) -> str:
-    return rule if rule.startswith("finite") else f"{rule} and finite"
-
-
-def _index_words(chain: Chain, field: str, where) -> str:
-    """``[i] (link i)`` for a per-link entry; the link a gear or attach point belongs to; nothing for a scalar."""
-    where = tuple(int(w) for w in np.atleast_1d(where))
-    if not where:
-        return ""
-    if field == "gear":
-        return f"[{where[0]}] (link {chain.actuated[where[0]]})"
-    if field == "attach":
-        return f"[{where[0]}] (link {chain.attached[where[0]]})"
-    if field == "ranges":
-        return f"[{where[0]}] (link {chain.limited[where[0]]})"
-    if field == "contact_points":
-        return f"[{where[0]}] (link {chain.contact_links[where[0]]})"
-    return f"[{where[0]}] (link {where[0]})"

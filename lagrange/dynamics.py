@@ -42,7 +42,8 @@ from jaxtyping import Array, ArrayLike, Bool, Float
 
 from lagrange import recursive, unrolled
 from lagrange.actuation import actuation_matrix
-from lagrange.chain import Chain, check_parameters
+from lagrange.chain import Chain
+from lagrange.checks import check_parameters
 
 __all__ = ["RECURSIVE_MIN", "SINGULAR", "actuation_matrix", "bias_forces", "energy", "forward_dynamics",
            "forward_dynamics_and_pivots", "gravity_forces", "inverse_dynamics", "mass_matrix"]
@@ -65,7 +66,7 @@ def _folded(chain: Chain) -> Chain:
 
 
 def _prepared(chain: Chain, *, at_run_time: bool = True) -> Chain:
-    """``chain`` with its parameters checked (:func:`lagrange.chain.check_parameters`: concrete ones now, traced ones
+    """``chain`` with its parameters checked (:func:`lagrange.checks.check_parameters`: concrete ones now, traced ones
     when run unless ``at_run_time=False``) and folded (:func:`_folded`)."""
     return _folded(check_parameters(chain, at_run_time=at_run_time))
 
@@ -196,7 +197,7 @@ def forward_dynamics(
         implicit_damping_dt: ``h`` [s] to solve with ``M + h diag(damping)`` instead of ``M``, the velocity
             update of :class:`lagrange.SemiImplicitEuler` (damping treated implicitly); ``None`` for ``M``.
         check: raise where ``M`` is singular at ``q``, or where a traced parameter breaks its rule
-            (:func:`lagrange.chain.check_parameters`); ``False`` skips both run-time checks (a NaN or Inf then comes
+            (:func:`lagrange.checks.check_parameters`); ``False`` skips both run-time checks (a NaN or Inf then comes
             out instead, as inside :func:`lagrange.simulate`, which checks the parameters once and the final state).
             Concrete parameters are checked while tracing either way.
 

@@ -26,7 +26,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from lagrange.chain import Chain, check_parameters
+from lagrange.chain import Chain
+from lagrange.checks import check_parameters
 from lagrange._linalg import spd_solver
 from lagrange.actuation import actuation_matrix, clamp_controls
 from lagrange.dynamics import bias_forces, energy, forward_dynamics, gravity_forces, mass_matrix

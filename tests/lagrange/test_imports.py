@@ -162,10 +162,11 @@ def test_no_module_of_lagrange_names_an_algorithm():
 
 
 def test_chain_imports_no_other_module():
-    """``lagrange.chain`` and the laws it holds (``lagrange.contact``, ``lagrange.limits``) are the root of the physics:
-    the parameters and their checks, no dynamics."""
+    """``lagrange.chain``, its checks (``lagrange.checks``) and the laws it holds (``lagrange.contact``,
+    ``lagrange.limits``) are the root of the physics: the parameters and their checks, no dynamics."""
     graph = import_graph("lagrange")
-    assert graph["lagrange.chain"] == {"lagrange.contact", "lagrange.limits"}
+    assert graph["lagrange.chain"] == {"lagrange.checks", "lagrange.contact", "lagrange.limits"}
+    assert graph["lagrange.checks"] <= {"lagrange.contact", "lagrange.limits"}
     assert graph["lagrange.contact"] == set() and graph["lagrange.limits"] == {"lagrange.contact"}
 
 
