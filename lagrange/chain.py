@@ -145,7 +145,7 @@ class Link(eqx.Module):
         springref: Float[ArrayLike, ""] = 0.0,
         sense: int = 1,
         range: tuple[float, float] | None = None,
-        contacts=(),
+        contacts: Sequence[tuple[float, float, float]] = (),
     ):
         if isinstance(joint, np.str_):
             joint = str(joint)

@@ -288,8 +288,9 @@ def simulate(
 
     Args:
         chain: the :class:`~lagrange.chain.Chain`.
-        q0, qd0: initial joint coordinates [rad or m] and velocities [rad/s or m/s], shape ``(n,)``; integers and
-            lower-precision floats are converted to the chain's float dtype, booleans and complex numbers refused.
+        q0: initial joint coordinates [rad or m], shape ``(n,)``; integers and lower-precision floats are
+            converted to the chain's float dtype, booleans and complex numbers refused.
+        qd0: initial joint velocities [rad/s or m/s], shape ``(n,)``; converted as ``q0``.
         controls: an array ``(T >= 1, m)`` held constant over each interval, or a policy
             ``controls(t, q, qd) -> u`` of shape ``(m,)`` evaluated at each interval's start
             (then ``steps=T`` is required). ``None`` for an unactuated chain (with ``steps``).
@@ -300,10 +301,11 @@ def simulate(
             ``controls=None``; with an array it must equal its length, or be None.
         adjoint: ``None`` for direct reverse-mode through the unrolled steps, or a diffrax
             adjoint to run every interval through ``diffrax.diffeqsolve``.
-        rtol, atol: give both for adaptive steps (embedded-error solvers only).
+        rtol: relative tolerance of adaptive steps (embedded-error solvers only; give ``atol`` too), or None.
+        atol: absolute tolerance of adaptive steps, or None.
         max_steps: with adaptive steps, the most solver steps one control interval may take.
         check: raise (``eqx.error_if``) if the final state is not finite, which also reports a
-            mass matrix met singular on the way.
+            mass matrix met singular on the way; check the chain's parameters, ``q0``, ``qd0`` and the controls.
         checkpoint: with fixed steps and ``adjoint=None``, recompute each interval's
             intermediates in the backward pass (``jax.checkpoint``) instead of storing them:
             memory O(T) states only, and 2-3x faster gradients for cheap dynamics on a CPU.
@@ -411,10 +413,17 @@ def step(
 
     Args:
         chain: the :class:`~lagrange.chain.Chain`.
-        q, qd: joint coordinates [rad or m] and velocities [rad/s or m/s], shape ``(*batch, n)``
-            (leading batch dimensions for fixed-step solvers only); converted as for :func:`simulate`.
+        q: joint coordinates [rad or m], shape ``(*batch, n)`` (leading batch dimensions for fixed-step solvers
+            only); converted as for :func:`simulate`.
+        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
         u: controls, shape ``(*batch, m)``; ``None`` for no control.
-        dt, solver, substeps, adjoint, rtol, atol, max_steps: as for :func:`simulate`.
+        dt: the interval [s], > 0.
+        solver: as for :func:`simulate`.
+        substeps: as for :func:`simulate`.
+        adjoint: as for :func:`simulate`.
+        rtol: as for :func:`simulate`.
+        atol: as for :func:`simulate`.
+        max_steps: as for :func:`simulate`.
 
     Returns:
         The new ``(q, qd)``, each of shape ``(*batch, n)``.

@@ -50,7 +50,7 @@ def _refuse(mujoco, model, limits: str, contact: str) -> None:
             )
         if _limited(mujoco, model, j) and isinstance(limits, str) and limits == "raise":
             raise ValueError(
-                f"from_mjcf: {nm('joint', j)} is limited (range {list(model.jnt_range[j])}). from_mjcf(..., "
+                f"from_mjcf: {nm('joint', j)} is limited (range {model.jnt_range[j].tolist()}). from_mjcf(..., "
                 "limits=lagrange.PenaltyLimits(ke, kd)) loads it with penalty limits, limits=\"ignore\" without them "
                 "(exact while the joint stays inside its range)"
             )
@@ -127,7 +127,8 @@ def _refuse_contacts(mujoco, model, nm) -> None:
     bit = mujoco.mjtDisableBit
     if off & bit.mjDSBL_CONSTRAINT or off & bit.mjDSBL_CONTACT:
         return
-    way_out = ("from_mjcf(..., contact=\"ignore\") loads it without contact (exact while nothing touches); or disable "
+    way_out = ("from_mjcf(..., contact=lagrange.PenaltyContact(ke, kd, kf, mu)) loads it with penalty ground contact, "
+               "contact=\"ignore\" without contact (exact while nothing touches); or disable "
                "contacts in the model (<option><flag contact=\"disable\"/></option>) or set contype=\"0\" "
                "conaffinity=\"0\" on the geoms")
     if model.npair:
