@@ -1,8 +1,9 @@
-"""Shared helpers of the benchmark scripts: where they write, the ``--bodies`` flag, the paper tasks by name, and a
-markdown table of result rows."""
+"""Shared helpers of the benchmark scripts: where they write, the ``--bodies`` flag, the paper tasks by name, a
+markdown table of result rows, figures, and the MJCF files that other packages ship."""
 
 from __future__ import annotations
 
+import importlib.util
 import pathlib
 
 from lagrange.tasks import BODY_SETS, PAPER_TASKS
@@ -17,6 +18,17 @@ def outputs(quick: bool) -> tuple[pathlib.Path, pathlib.Path]:
     """``(folder of result files, folder of plots)``: :data:`RESULTS` and :data:`IMG` for a full run,
     :data:`QUICK` for both with ``--quick``."""
     return (QUICK, QUICK) if quick else (RESULTS, IMG)
+
+
+def asset(package: str, *parts: str) -> pathlib.Path:
+    """A file shipped inside an installed ``package`` (not imported), e.g. ``asset("brax", "envs", "assets",
+    "hopper.xml")``; :func:`gymnasium_model` for Gymnasium's MuJoCo models."""
+    return pathlib.Path(importlib.util.find_spec(package).submodule_search_locations[0]).joinpath(*parts)
+
+
+def gymnasium_model(name: str) -> pathlib.Path:
+    """Gymnasium's MJCF model ``name`` (``"hopper"``, ``"half_cheetah"``, ...)."""
+    return asset("gymnasium", "envs", "mujoco", "assets", f"{name}.xml")
 
 
 def paper_task(name: str, bodies: str = "rods", **options):
@@ -61,3 +73,23 @@ def markdown_table(rows, keys) -> str:
         lines.append("| " + " | ".join(f"{r.get(k):.3g}" if isinstance(r.get(k), float) else str(r.get(k))
                                       for k in keys) + " |")
     return "\n".join(lines)
+
+
+def subplots(*args, **kwargs):
+    """``matplotlib.pyplot.subplots(*args, **kwargs)`` on the Agg backend (files, no display)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt.subplots(*args, **kwargs)
+
+
+def save_figure(fig, path: pathlib.Path, dpi: int, **layout) -> None:
+    """``fig`` laid out (``tight_layout(**layout)``), written to ``path`` (its folder made) and closed."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout(**layout)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)

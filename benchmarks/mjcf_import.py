@@ -11,7 +11,6 @@ reacher is listed with the reason it is refused. Writes ``benchmarks/results/mjc
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import pathlib
 
@@ -24,13 +23,10 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 import lagrange as lg  # noqa: E402
+from benchmarks._cli import asset  # noqa: E402
 from lagrange.interop.mjcf import from_mjcf, mujoco_rollout, solver_of  # noqa: E402
 
 RESULTS = pathlib.Path(__file__).parent / "results"
-
-
-def _dir(package: str, *parts: str) -> pathlib.Path:
-    return pathlib.Path(importlib.util.find_spec(package).submodule_search_locations[0]).joinpath(*parts)
 
 
 MODELS = {
@@ -94,7 +90,7 @@ def main():
     rows = {}
     for name, parts in MODELS.items():
         try:
-            rows[name] = measure(_dir(*parts))
+            rows[name] = measure(asset(*parts))
         except NotImplementedError as err:
             rows[name] = {"refused": str(err)}
         print(name, rows[name])

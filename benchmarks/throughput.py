@@ -1,7 +1,8 @@
 """Speed: env-steps per second, forward and gradient, against the closed form, Brax, MJX, MuJoCo C, Pinocchio.
 
-    python -m benchmarks.throughput                  # the acrobot table and the n-link scaling sweep
+    python -m benchmarks.throughput                  # the acrobot table, the n-link scaling sweep, the legged models
     python -m benchmarks.throughput --scaling-only   # only the n-link scaling sweep
+    python -m benchmarks.throughput --legged-only    # only the half-cheetah in free flight and the hopper on the ground
     python -m benchmarks.throughput --quick          # reduced sweeps, written under runs/benchmarks/
 
 The acrobot table (:func:`acrobot_main`): ``lagrange.systems.acrobot()``, float64, dt = 0.01, rollouts of ``STEPS``
@@ -11,11 +12,11 @@ mode, counting the forward steps covered. Semi-implicit Euler beside Brax genera
 RK4 beside the hand-written closed form (``oracles/closed_form.py``) and MuJoCo C's ``RK4``. MuJoCo C runs
 ``mujoco.rollout`` with 2 threads; Pinocchio's ABA (and its derivatives) is timed per call on one state from Python (it
 has no batch API). Compile: seconds of the first call of the batch-1024 functions. The n-link scaling sweep:
-:func:`scaling_rows`. Both tables, read: ``docs/benchmarks.md``.
+:func:`scaling_rows`; the legged models: :func:`legged_main`. The tables, read: ``docs/benchmarks.md``.
 
-Writes the acrobot table to ``benchmarks/results/throughput.json``, the scaling sweep to
-``benchmarks/results/throughput_scaling.json`` and its plot to ``docs/img/throughput_scaling.png``
-(``--scaling-only``: only the last two; ``--quick``: ``*_quick.*`` under ``runs/benchmarks/``, not published).
+Writes ``benchmarks/results/throughput.json`` (acrobot), ``throughput_scaling.json`` and its plot
+``docs/img/throughput_scaling.png``, ``throughput_legged.json`` (each ``--...-only`` flag only its own;
+``--quick``: ``*_quick.*`` under ``runs/benchmarks/``, not published).
 """
 
 from __future__ import annotations
@@ -28,14 +29,15 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
+import equinox as eqx  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import lagrange as lg  # noqa: E402
-from benchmarks._cli import markdown_table, outputs  # noqa: E402
+from benchmarks._cli import asset, gymnasium_model, markdown_table, outputs, save_figure, subplots  # noqa: E402
 from benchmarks._engines import brax_rollout, mjx_rollout  # noqa: E402
 from benchmarks._timing import block, median_time  # noqa: E402
-from lagrange.interop.mjcf import to_mjcf  # noqa: E402
+from lagrange.interop.mjcf import from_mjcf, to_mjcf  # noqa: E402
 from optim.checkpoint import write_json  # noqa: E402
 from oracles import closed_form as cf  # noqa: E402
 
@@ -53,23 +55,24 @@ def _loss(q, qd):
 # Each factory returns fwd(q0 (B,n), qd0 (B,n), us (B,T,m)) -> (q, qd) and grad(...) -> d/d us.
 
 
-def _jax_pair(rollout):
-    """rollout(q0, qd0, us) for one env -> (qT, qdT); returns jitted batched forward and gradient."""
+def _jax_pair(rollout, argnums=2):
+    """rollout(q0, qd0, us) for one env -> (qT, qdT); returns jitted batched forward and gradient (with respect to
+    the controls, or the arguments ``argnums``)."""
     fwd = jax.jit(jax.vmap(rollout))
 
     def loss(q0, qd0, us):
         return _loss(*rollout(q0, qd0, us))
 
-    grad = jax.jit(jax.vmap(jax.grad(loss, argnums=2)))
+    grad = jax.jit(jax.vmap(jax.grad(loss, argnums=argnums)))
     return fwd, grad
 
 
-def lagrange_engine(chain, solver):
+def lagrange_engine(chain, solver, dt=DT, argnums=2):
     def rollout(q0, qd0, us):
-        tr = lg.simulate(chain, q0, qd0, us, DT, solver, check=False)
+        tr = lg.simulate(chain, q0, qd0, us, dt, solver, check=False)
         return tr.q[-1], tr.qd[-1]
 
-    return _jax_pair(rollout)
+    return _jax_pair(rollout, argnums)
 
 
 def closed_form_engine():
@@ -86,8 +89,8 @@ def brax_engine(chain):
     return _jax_pair(brax_rollout(chain, DT))
 
 
-def mjx_engine(chain, integrator="Euler"):
-    return _jax_pair(mjx_rollout(chain, DT, integrator))
+def mjx_engine(chain, integrator="Euler", argnums=2):
+    return _jax_pair(mjx_rollout(chain, DT, integrator), argnums)
 
 
 # ------------------------------------------------------------------------------ MuJoCo C, Pinocchio
@@ -99,7 +102,8 @@ class MujocoC:
         import mujoco.rollout as rollout
 
         self.mujoco, self.rollout = mujoco, rollout
-        self.model = mujoco.MjModel.from_xml_string(to_mjcf(chain, timestep=DT, integrator=integrator))
+        self.model = chain if isinstance(chain, mujoco.MjModel) else mujoco.MjModel.from_xml_string(
+            to_mjcf(chain, timestep=DT, integrator=integrator))
         self.datas = [mujoco.MjData(self.model) for _ in range(nthread)]
         self.spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
         self.nstate = mujoco.mj_stateSize(self.model, self.spec)
@@ -184,11 +188,11 @@ def _inputs(n, m, B, T=STEPS, seed=0):
             jnp.asarray(rng.uniform(-1, 1, (B, T, m))))
 
 
-def time_jax(fn, args, cpu=False, best=False):
+def time_jax(fn, args, cpu=False, best=False, repeats=None):
     t, c = time.perf_counter(), time.process_time()
     block(fn(*args))
     first, first_cpu = time.perf_counter() - t, time.process_time() - c
-    run = median_time(fn, *args, repeats=5 if best else 3, min_time=0.05, best=best)
+    run = median_time(fn, *args, repeats=repeats or (5 if best else 3), min_time=0.05, best=best)
     return (run, first, first_cpu) if cpu else (run, first)
 
 
@@ -196,14 +200,19 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="reduced sweep")
     ap.add_argument("--scaling-only", action="store_true", help="run only the n-link scaling sweep")
+    ap.add_argument("--legged-only", action="store_true",
+                    help="run only the half-cheetah in free flight and the hopper on the ground")
     args = ap.parse_args(argv)
     results, img = outputs(args.quick)
     suffix = "_quick" if args.quick else ""
-    if not args.scaling_only:
+    if not (args.scaling_only or args.legged_only):
         acrobot_main([1, 64, 1024] if args.quick else [1, 64, 1024, 4096], args.quick,
                      results / f"throughput{suffix}.json")
-    scaling_main([2, 4, 8] if args.quick else SCALING_NS, results / f"throughput_scaling{suffix}.json",
-                 img / f"throughput_scaling{suffix}.png")
+    if not args.legged_only:
+        scaling_main([2, 4, 8] if args.quick else SCALING_NS, results / f"throughput_scaling{suffix}.json",
+                     img / f"throughput_scaling{suffix}.png")
+    if not args.scaling_only:
+        legged_main(64 if args.quick else 1024, results / f"throughput_legged{suffix}.json")
 
 
 def _versions(**out):
@@ -453,14 +462,9 @@ def _print_scaling(out):
 
 
 def _plot_scaling(rows, path):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     if not rows:
         return
-    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    fig, ax = subplots(figsize=(6.5, 4.5))
     series = (
         ("lagrange_us_per_env_step", "o-", "lagrange forward, batch 1024, per env-step"),
         ("lagrange_gradient_us_per_env_step", "o--", "lagrange gradient, batch 1024, per env-step"),
@@ -483,11 +487,96 @@ def _plot_scaling(rows, path):
     ax.set(xlabel="links n", ylabel="microseconds", title="cost per step against chain length (float64, SIE)")
     ax.legend(fontsize=6.5)
     ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
+    save_figure(fig, path, dpi=80)
 
+
+# ------------------------------------------------------------------------------ legged models (issues 42 and 43)
+
+LEGGED_T = 20
+MJX_CONTACT_GRADIENT_BATCH = 128  # MJX's gradient through contact at batch 1024 ran out of the machine's 23 GB
+LEGGED = {  # Gymnasium's model, from_mjcf's limits and contact, MuJoCo's constraints, Brax's model (None: lagrange's)
+    "half_cheetah_free_flight": ("half_cheetah", "ignore", "ignore", False, None),
+    "hopper_on_the_ground": ("hopper", lg.PenaltyLimits(1e3, 10.0), lg.PenaltyContact(2e4, 1e3, 1e3, 0.9), True,
+                             "hopper"),
+}
+
+
+def legged_model(name, constraints, iterations=None):
+    """Gymnasium's model ``name`` with MuJoCo's ``Euler``, its constraints (contact, limits) disabled unless
+    ``constraints``, its solver's ``iterations`` if given."""
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_path(str(gymnasium_model(name)))
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    model.opt.disableflags |= 0 if constraints else mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    model.opt.iterations = iterations or model.opt.iterations
+    return model
+
+
+def _legged_inputs(chain, model, batch, settle=150):
+    """:func:`_inputs`; with contact, the states are Gymnasium's reset (``qpos0``, coordinates and velocities moved by
+    up to 5e-3) after ``settle`` steps without control and with 100 times the contact damping (the landing's bounces
+    die out): the foot stands on the ground. Also how many states touch the ground in MuJoCo (``ncon > 0``)."""
+    import mujoco
+
+    q0, qd0, us = _inputs(chain.n, chain.m, batch, T=LEGGED_T)
+    if chain.contact is not None:
+        rng = np.random.default_rng(1)
+        q0, qd0 = model.qpos0 + rng.uniform(-5e-3, 5e-3, q0.shape), rng.uniform(-5e-3, 5e-3, qd0.shape)
+        damped = eqx.tree_at(lambda c: c.contact.kd, chain, 100 * chain.contact.kd)
+        tr = jax.jit(jax.vmap(lambda q, qd: lg.simulate(damped, q, qd, jnp.zeros((settle, chain.m)),
+                                                        model.opt.timestep, lg.SemiImplicitEuler())))(q0, qd0)
+        q0, qd0 = tr.q[:, -1], tr.qd[:, -1]
+    data, touching = mujoco.MjData(model), 0
+    for data.qpos[:], data.qvel[:] in zip(np.asarray(q0), np.asarray(qd0)):
+        mujoco.mj_forward(model, data)
+        touching += data.ncon > 0
+    return (q0, qd0, us), int(touching)
+
+
+def legged_main(batch, path):
+    """The half-cheetah in free flight and the hopper on the ground (:data:`LEGGED`): µs per env-step at ``batch``,
+    forward and gradient of ``sum(q_T^2 + qd_T^2)`` with respect to the initial state, ``LEGGED_T`` steps of the
+    model's timestep; lagrange, MJX (one solver iteration: its reverse mode needs it where constraints are on) and
+    Brax generalized (Brax's own hopper, or the chain written by ``to_mjcf``: Brax ignores MuJoCo's disable flags),
+    then lagrange and MuJoCo C in alternating rounds."""
+    import mujoco
+
+    out = _versions(batch=batch, steps=LEGGED_T, loadavg_start=os.getloadavg(), rows=[])
+    for name, (xml, limits, contact, constraints, brax_xml) in LEGGED.items():
+        chain = from_mjcf(gymnasium_model(xml), limits=limits, contact=contact)
+        model = legged_model(xml, constraints)
+        a, touching = _legged_inputs(chain, model, batch)
+        brax_file = brax_xml and asset("brax", "envs", "assets", f"{brax_xml}.xml")
+        brax = brax_rollout(brax_file or chain, model.opt.timestep)
+        # Brax's hopper has no joint reference (MJCF's ref): its qpos is Gymnasium's less Gymnasium's qpos0
+        shift = 0.0 if not brax_xml else mujoco.MjModel.from_xml_path(str(brax_file)).qpos0 - model.qpos0
+        engines = {"lagrange": lagrange_engine(chain, lg.SemiImplicitEuler(), model.opt.timestep, argnums=(0, 1)),
+                   "mjx": mjx_engine(legged_model(xml, constraints, iterations=1), argnums=(0, 1)),
+                   "brax": _jax_pair(lambda q0, qd0, us: brax(q0 + shift, qd0, us), (0, 1))}
+        row = dict(model=name, dt=model.opt.timestep, n=chain.n, contact_points=len(chain.contact_links),
+                   states_touching_in_mujoco=touching)
+        for e, (fwd, grad) in engines.items():
+            gb = min(batch, MJX_CONTACT_GRADIENT_BATCH) if e == "mjx" and chain.contact is not None else batch
+            repeats = None if e == "lagrange" else 2
+            t, first = time_jax(fwd, a, best=True, repeats=repeats)
+            tg, gfirst = time_jax(grad, tuple(x[:gb] for x in a), best=True, repeats=repeats)
+            row |= {f"{e}_us_per_env_step": t / (batch * LEGGED_T) * 1e6, f"{e}_gradient_batch": gb,
+                    f"{e}_gradient_us_per_env_step": tg / (gb * LEGGED_T) * 1e6, f"{e}_first_calls_s": [first, gfirst]}
+            print(f"  {name} {e}: {row[f'{e}_us_per_env_step']:.3g} / {row[f'{e}_gradient_us_per_env_step']:.3g} "
+                  f"us per env-step (first calls {first:.1f} s, {gfirst:.1f} s)", flush=True)
+        mj = MujocoC(model, None).make(*(np.asarray(x) for x in a))
+        t, tm = _alternating(lambda: engines["lagrange"][0](*a), mj)
+        row |= {"lagrange_us_per_env_step": min(row["lagrange_us_per_env_step"], t / (batch * LEGGED_T) * 1e6),
+                "mujoco_c_us_per_env_step": tm / (batch * LEGGED_T) * 1e6,
+                "forward_speedup_over_mujoco_c (target >= 5)": tm / t,
+                "max_abs_qT_difference_to_mujoco": float(np.max(np.abs(np.asarray(engines["lagrange"][0](*a)[0])
+                                                                       - mj()[:, -1, 1 : 1 + chain.n])))}
+        out["rows"].append(row)
+    out["loadavg_end"] = os.getloadavg()
+    print(markdown_table(out["rows"], list(out["rows"][0])))
+    write_json(path, out)
+    print(f"wrote {path}")
 
 if __name__ == "__main__":
     main()
