@@ -1,8 +1,9 @@
 """Numerical stability sweeps: energy drift, random stress states, float32 vs float64, gradients.
 
-    python -m benchmarks.stability                    # the full sweep (about 3 minutes on 2 cores)
+    python -m benchmarks.stability                    # the full sweep (about 5 minutes on 2 cores)
     python -m benchmarks.stability --quick            # reduced sweep (~1-2 minutes), written under runs/benchmarks/
     python -m benchmarks.stability --adaptive-only    # part 2b alone (about 2 minutes; with --quick, under 1)
+    python -m benchmarks.stability --contact-only     # part 5 alone (about 1.5 minutes)
 
 1. Energy drift of the conservative acrobot and double pendulum over 1e5 steps for each solver.
 2. 10,000 random initial states (speeds up to 50 rad/s, mass ratios up to 1e3 within a chain,
@@ -16,10 +17,13 @@
    two float64 runs whose initial angles differ by 1e-7 rad.
 4. The gradient norm of a final-state loss with respect to the controls against the horizon
    for the acrobot, float32 and float64 (plot).
+5. Gymnasium's hopper and half-cheetah dropped on the ground (penalty contact and limits): the largest stable
+   fixed step of semi-implicit Euler against the contact stiffness, the energy at two steps, Tsit5 with error
+   control through the impacts (:func:`contact_drops`; plot of the hopper's drop).
 
-Writes ``benchmarks/results/stability.json`` and the plot ``docs/img/stability_gradients.png`` (``--quick``:
-``stability_quick.json`` and ``stability_gradients_quick.png`` under ``runs/benchmarks/``, not published);
-``--adaptive-only`` replaces only the ``adaptive_stress`` key of that JSON and keeps the other sections' results.
+Writes ``benchmarks/results/stability.json`` and the plots ``docs/img/stability_gradients.png`` and
+``docs/img/hopper_drop.png`` (``--quick``: ``*_quick.*`` under ``runs/benchmarks/``, not published);
+``--adaptive-only`` and ``--contact-only`` replace only their key of that JSON (``adaptive_stress``, ``contact``).
 Energy errors are relative to ``E0 - V(q = 0)``, the energy above the chain hanging at rest.
 """
 
@@ -39,7 +43,10 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import lagrange as lg  # noqa: E402
-from benchmarks._cli import markdown_table, outputs  # noqa: E402
+from benchmarks._cli import gymnasium_model, markdown_table, outputs, save_figure, subplots  # noqa: E402
+from benchmarks._timing import median_time  # noqa: E402
+from lagrange.interop.mjcf import from_mjcf  # noqa: E402
+from lagrange.kinematics import contact_point_positions  # noqa: E402
 from optim.checkpoint import write_json  # noqa: E402
 
 
@@ -324,12 +331,7 @@ def gradient_growth(horizons, dt=0.01):
 
 
 def plot_gradients(rows, path):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(1, 2, figsize=(9, 3.4))
+    fig, ax = subplots(1, 2, figsize=(9, 3.4))
     for dtype, style in (("float64", "o-"), ("float32", "s--")):
         rs = [r for r in rows if r["dtype"] == dtype]
         ax[0].semilogy([r["horizon_s"] for r in rs], [r["grad_norm"] for r in rs], style, label=dtype)
@@ -341,10 +343,117 @@ def plot_gradients(rows, path):
     ax[0].legend()
     for a in ax:
         a.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
+    save_figure(fig, path, dpi=90)
+
+
+# ------------------------------------------------------------------------------ contact: dropped on the ground
+
+DROP_MU = {"hopper": 0.9, "half_cheetah": 1.0}  # Gymnasium's models and the friction coefficient of each
+DROP_KE = (2e3, 2e4, 2e5)
+DROP_STEPS = tuple(0.1 * 2 ** (-k / 2) for k in range(17))  # the fixed steps tried, 0.1 s to 2.5e-4 s, largest first
+DROP_S, DROP_HEIGHT, DROP_TILTS = 2.0, 0.5, (-0.2, 0.0, 0.2)  # seconds, m above qpos0, rad (rooty)
+DROP_ENERGY_STEPS, DROP_TOLERANCES = (5e-3, 5e-4), (1e-4, 1e-6)
+
+
+def _bounded(e, scale):
+    """Whether the energies ``e`` (steps, states) stay finite and never more than ``scale`` above their start."""
+    e = np.asarray(e)
+    return bool(np.all(np.isfinite(e)) and np.max(e - e[0]) <= scale)
+
+
+def dropped(name, ke, damped=True):
+    """Gymnasium's ``name`` with penalty contact of stiffness ``ke`` and penalty limits (``PenaltyLimits(1e3, 10)``),
+    and its drop states (:data:`DROP_TILTS`, ``DROP_HEIGHT`` above ``qpos0``, at rest). ``damped=False``: no contact
+    damping or friction (``kd = kf = 0``), no limit damping and no joint damping: a conservative model."""
+    k = 1e3 if damped else 0.0
+    chain = from_mjcf(gymnasium_model(name), contact=lg.PenaltyContact(ke, k, k, DROP_MU[name]),
+                      limits=lg.PenaltyLimits(1e3, 10.0 if damped else 0.0))
+    if not damped:
+        chain = eqx.tree_at(lambda c: c.damping, chain, jnp.zeros_like(chain.damping))
+    q0 = np.zeros((len(DROP_TILTS), chain.n))
+    q0[:, 1] = (1.25 if name == "hopper" else 0.0) + DROP_HEIGHT  # rootz's qpos0: 1.25 (hopper) and 0 (cheetah)
+    q0[:, 2] = DROP_TILTS
+    return chain, jnp.asarray(q0)
+
+
+@eqx.filter_jit
+def _drop(chain, q0, h, steps):
+    """Semi-implicit Euler drops from the states ``q0`` (at rest, unactuated): the total energy (the penalty springs'
+    included) and rootz at every step, shape ``(steps + 1, states)``."""
+    tr = jax.vmap(lambda q: _rollout(chain, q, jnp.zeros_like(q), h, lg.SemiImplicitEuler(), steps))(q0)
+    kin, pot = lg.energy(chain, tr.q, tr.qd)
+    return (kin + pot).T, tr.q[..., 1].T
+
+
+def step_estimate(chain, q):
+    """``(2 sqrt(m_eff / ke), m_eff)``: ``m_eff = 1 / (J M^-1 J^T)`` the lightest of the contact points' effective
+    masses along the ground's normal at ``q`` (``J``: the gradient of a point's height)."""
+    J = np.asarray(jax.jacfwd(lambda q: contact_point_positions(chain, q)[:, 1])(q))
+    m_eff = 1 / np.max(np.sum(J * np.linalg.solve(np.asarray(lg.mass_matrix(chain, q)), J.T).T, axis=1))
+    return 2 * np.sqrt(m_eff / float(chain.contact.ke)), m_eff
+
+
+def _timed(fn, *args):
+    """``(outputs as NumPy arrays, the least seconds of 3 calls after the first)``: the first call compiles."""
+    out = jax.block_until_ready(fn(*args))
+    return [np.asarray(x) for x in out], median_time(fn, *args, repeats=3, min_time=0.0, warmup=0, best=True)
+
+
+def contact_drops(quick):
+    """For the hopper and the half-cheetah dropped on the ground: the largest stable fixed step against ``ke`` (stable:
+    finite, the total energy never more than ``M g 1 m`` above its start over ``DROP_S``; every state of
+    :func:`dropped`) beside :func:`step_estimate`; at ``ke = 2e4``, from the first state, the energy's largest error
+    and largest rise above its running minimum (both in units of ``M g 1 m``) at ``DROP_ENERGY_STEPS``, and Tsit5
+    with error control (``rtol = atol``, restarted at every 10 ms interval) through the impacts: its steps, wall
+    time (compile excluded) and energy error beside the fixed steps'."""
+    out = dict(horizon_s=DROP_S, drop_height_m=DROP_HEIGHT, tilts=DROP_TILTS, stable=[], energy=[], adaptive=[])
+    for name in DROP_MU:
+        for ke in DROP_KE[1:2] if quick else DROP_KE:
+            for damped in (True, False):
+                chain, q0 = dropped(name, ke, damped)
+                h_est, m_eff = step_estimate(chain, q0[0])
+                scale = float(jnp.sum(chain.mass)) * 9.81
+                largest = next((h for h in DROP_STEPS if _bounded(_drop(chain, q0, h, round(DROP_S / h))[0], scale)),
+                               None)
+                out["stable"].append(dict(model=name, ke=ke, damped=damped, largest_stable_step=largest,
+                                          estimate_2_sqrt_m_eff_over_ke=h_est, m_eff=m_eff))
+                print(f"  drop {out['stable'][-1]}", flush=True)
+    adaptive = eqx.filter_jit(_adaptive_rollout)
+    for name in DROP_MU:
+        for damped in (True, False):
+            chain, q0 = dropped(name, 2e4, damped)
+            scale = float(jnp.sum(chain.mass)) * 9.81
+            row = dict(model=name, ke=2e4, damped=damped)
+            for h in DROP_ENERGY_STEPS:
+                (e, z), wall = _timed(_drop, chain, q0[:1], h, round(DROP_S / h))
+                out["energy"].append(row | dict(step=h, steps=round(DROP_S / h), wall_s=wall, trace=(e[:, 0], z[:, 0]),
+                                                max_energy_change=float(np.max(np.abs(e - e[0])) / scale),
+                                                max_rise=float(np.max(e - np.minimum.accumulate(e)) / scale)))
+            for tol in DROP_TOLERANCES:
+                (q, qd, accepted, rejected, _, _, failed), wall = _timed(
+                    adaptive, chain, q0[0], jnp.zeros_like(q0[0]), 0.01, round(DROP_S / 0.01), jnp.asarray(tol),
+                    jnp.asarray(tol), 4096)
+                e = np.sum(lg.energy(chain, q, qd), axis=0)
+                out["adaptive"].append(row | dict(rtol_atol=tol, failed=bool(failed), steps=int(accepted + rejected),
+                                                  rejected=int(rejected), wall_s=wall,
+                                                  max_energy_change=float(np.max(np.abs(e - e[0])) / scale)))
+    return out
+
+
+def plot_drop(rows, path):
+    """Rootz and the total energy against time of the hopper's damped drop at the two steps of ``rows``."""
+    fig, ax = subplots(1, 2, figsize=(9, 3.4))
+    for r in rows:
+        t = np.arange(r["steps"] + 1) * r["step"]
+        for a, y in zip(ax, r["trace"][::-1]):
+            a.plot(t, y, lw=0.9, label=f"h = {r['step']:g} s")
+    ax[0].set(xlabel="time [s]", ylabel="rootz [m]", title="hopper dropped: ke = 2e4, kd = kf = 1e3, mu = 0.9")
+    ax[1].set(xlabel="time [s]", ylabel="total energy [J] (penalty springs included)",
+              title="semi-implicit Euler, unactuated")
+    for a in ax:
+        a.grid(True, alpha=0.3)
+        a.legend()
+    save_figure(fig, path, dpi=90)
 
 
 # the stress batch: its chain sizes and states in all (split evenly among them), by --quick
@@ -391,16 +500,29 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="reduced sweep")
     ap.add_argument("--adaptive-only", action="store_true",
                     help="only the error-controlled stress sweep (2b): replaces its key in the JSON, keeps the rest")
+    ap.add_argument("--contact-only", action="store_true",
+                    help="only the drops on the ground (5): replaces their key in the JSON, keeps the rest")
     args = ap.parse_args(argv)
     results, img = outputs(args.quick)
     suffix = "_quick" if args.quick else ""
     path, plot_path = results / f"stability{suffix}.json", img / f"stability_gradients{suffix}.png"
     t0 = time.perf_counter()
     out = {"quick": args.quick, "device": str(jax.devices()[0]), "float": "float64 unless stated"}
-    if args.adaptive_only:
+    if args.adaptive_only or args.contact_only:
         out = json.loads(path.read_text()) if path.exists() else out
     else:
         _fixed_step_sweeps(out, args.quick, path, plot_path)
+    if not args.adaptive_only:
+        print("contact: the hopper and the half-cheetah dropped on the ground", flush=True)
+        out["contact"] = drops = contact_drops(args.quick)
+        plot_drop([r for r in drops["energy"] if r["model"] == "hopper" and r["damped"]], img / f"hopper_drop{suffix}.png")
+        for r in drops["energy"]:
+            r.pop("trace")
+        for key in ("stable", "energy", "adaptive"):
+            print(markdown_table(drops[key], list(drops[key][0])))
+        write_json(path, out)
+        if args.contact_only:
+            return print(f"wrote {path} and {img / f'hopper_drop{suffix}.png'} ({time.perf_counter() - t0:.0f} s)")
 
     sizes, total = STRESS[args.quick]
     states = ADAPTIVE_STATES[args.quick]
