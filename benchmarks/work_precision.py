@@ -42,7 +42,7 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import lagrange as lg  # noqa: E402
-from benchmarks._cli import outputs  # noqa: E402
+from benchmarks._cli import outputs, save_figure, subplots  # noqa: E402
 from benchmarks._engines import brax_rollout, mjx_rollout  # noqa: E402
 from benchmarks._timing import block, median_time  # noqa: E402
 from lagrange.interop.mjcf import to_mjcf  # noqa: E402
@@ -216,10 +216,7 @@ def fastest_table(rows, problem, levels=(1e-2, 1e-4, 1e-6, 1e-8, 1e-10)):
 def plot(rows, problem, ref, path):
     import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(2, 2, figsize=(11, 8))
+    fig, axes = subplots(2, 2, figsize=(11, 8))
     groups = {}
     for r in rows:
         if r["problem"] != problem:
@@ -228,7 +225,7 @@ def plot(rows, problem, ref, path):
         name = f"{r['engine']} {r['config'].split(' ')[0]}" + (" (adaptive)" if kind == "adaptive" else "")
         groups.setdefault(name, []).append(r)
     markers = {"lagrange": "o", "brax": "s", "mujoco": "^", "mjx": "D"}
-    for (name, rs), color in zip(sorted(groups.items()), plt.cm.tab20(np.linspace(0, 1, max(len(groups), 2)))):
+    for (name, rs), color in zip(sorted(groups.items()), matplotlib.colormaps["tab20"](np.linspace(0, 1, max(len(groups), 2)))):
         rs = [r for r in rs if np.isfinite(r["final_state_error"])]
         if not rs:
             continue
@@ -246,10 +243,7 @@ def plot(rows, problem, ref, path):
         ax.grid(True, which="both", alpha=0.3)
     fig.legend(loc="center right", fontsize=7)
     fig.suptitle(f"{problem}: run time against error (float64; dotted: reference's own error)")
-    fig.tight_layout(rect=(0, 0, 0.82, 0.97))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=70)
-    plt.close(fig)
+    save_figure(fig, path, dpi=70, rect=(0, 0, 0.82, 0.97))
 
 
 def main(argv=None):
