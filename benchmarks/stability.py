@@ -442,14 +442,13 @@ def contact_drops(quick):
 
 def plot_drop(rows, path):
     """Rootz and the total energy against time of the hopper's damped drop at the two steps of ``rows``."""
-    fig, ax = subplots(1, 2, figsize=(9, 3.4))
+    fig, ax = subplots(1, 2, figsize=(10, 3.6))
     for r in rows:
         t = np.arange(r["steps"] + 1) * r["step"]
         for a, y in zip(ax, r["trace"][::-1]):
             a.plot(t, y, lw=0.9, label=f"h = {r['step']:g} s")
-    ax[0].set(xlabel="time [s]", ylabel="rootz [m]", title="hopper dropped: ke = 2e4, kd = kf = 1e3, mu = 0.9")
-    ax[1].set(xlabel="time [s]", ylabel="total energy [J] (penalty springs included)",
-              title="semi-implicit Euler, unactuated")
+    ax[0].set(xlabel="time [s]", ylabel="rootz [m]", title="hopper dropped (ke 2e4, kd = kf = 1e3, mu 0.9)")
+    ax[1].set(xlabel="time [s]", ylabel="total energy [J]", title="energy, penalty springs included")
     for a in ax:
         a.grid(True, alpha=0.3)
         a.legend()
