@@ -135,7 +135,8 @@ def gait_figure(task: AbstractTask, q, actions, path: str, *, rewards=None, titl
     fig.savefig(path, dpi=110)
 
 
-def gait_animation(task: AbstractTask, q, path: str, *, every: int | None = None, width: float = 4.0) -> None:
+def gait_animation(task: AbstractTask, q, path: str, *, every: int | None = None, width: float = 4.0,
+                   seconds: float | None = 4.0) -> None:
     """Animate a robot on the ground through the coordinates ``q`` (T + 1, n) to ``path`` (GIF): each link's capsules
     (pairs of its contact points, drawn with their radius), the ground, the view following the root.
 
@@ -145,6 +146,7 @@ def gait_animation(task: AbstractTask, q, path: str, *, every: int | None = None
         path: the GIF file.
         every: one frame every ``every`` control steps (default: about 20 frames per simulated second).
         width: the view's width [m].
+        seconds: animate the first ``seconds`` of the episode (a gait repeats; the file stays small), or None: all.
     """
     from matplotlib import animation
     from matplotlib.figure import Figure
@@ -153,22 +155,24 @@ def gait_animation(task: AbstractTask, q, path: str, *, every: int | None = None
     if chain.contact_points is None:
         raise ValueError("gait_animation draws a chain's capsules from its contact points; this chain has none")
     every = every or max(1, int(round(0.05 / task.dt)))
-    q = np.asarray(q)[::every]
+    q = np.asarray(q)
+    q = q[: None if seconds is None else int(round(seconds / task.dt)) + 1: every]
     pts = np.asarray(jax.vmap(lambda x: contact_point_positions(chain, x))(jnp.asarray(q)))
     radius = np.asarray(chain.contact_points)[:, 2]
     links = np.asarray(chain.contact_links)
     capsules = [(k, k + 1) for k in range(0, len(links) - 1, 2) if links[k] == links[k + 1]]
     ground = float(chain.contact.ground)
     top = float(np.max(pts[..., 1])) + 0.2
-    fig = Figure(figsize=(6, 6 * (top - ground + 0.3) / width))
+    fig = Figure(figsize=(5, 5 * (top - ground + 0.3) / width), dpi=80)
     ax = fig.subplots()
     ax.set_aspect("equal")
     ax.set_ylim(ground - 0.1, top)
     ax.axhspan(ground - 1.0, ground, color="0.85")
-    scale = fig.dpi * 6 / width * 0.72  # points per metre at this figure width
+    scale = 72 * 5 / width * 0.8  # points per metre at this figure width (the axes span ~80 % of it)
     lines = [ax.plot([], [], lw=2 * radius[a] * scale, solid_capstyle="round", color="tab:blue")[0]
              for a, b in capsules]
-    marks = [ax.axvline(x, color="0.7", lw=0.5) for x in np.arange(-50, 200, 1.0)]
+    for x in np.arange(np.floor(q[:, 0].min()) - width, q[:, 0].max() + width, 1.0):  # metre marks on the ground
+        ax.axvline(x, color="0.7", lw=0.5)
     text = ax.text(0.02, 0.95, "", transform=ax.transAxes, fontsize=8, va="top")
 
     def frame(i):
@@ -179,6 +183,5 @@ def gait_animation(task: AbstractTask, q, path: str, *, every: int | None = None
         text.set_text(f"t = {i * every * task.dt:4.2f} s, x = {centre:5.2f} m")
         return lines + [text]
 
-    del marks
     anim = animation.FuncAnimation(fig, frame, frames=pts.shape[0], blit=False)
     anim.save(path, writer=animation.PillowWriter(fps=int(round(1 / (every * task.dt)))))
