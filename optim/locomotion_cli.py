@@ -84,7 +84,8 @@ def locomotion_main(description: str, default_out: str, make_task: Callable[[], 
     task = make_task()
     actor = Actor.for_task(task, units=actor_units)
     steps = cfg.iterations * cfg.env_steps_per_epoch()
-    print(f"SHAC on {task.name}: {cfg.iterations} epochs x {cfg.num_envs} envs x {cfg.short_horizon} steps = "
+    algorithm = "SHAC" if cfg.use_critic else "BPTT"
+    print(f"{algorithm} on {task.name}: {cfg.iterations} epochs x {cfg.num_envs} envs x {cfg.short_horizon} steps = "
           f"{steps:.2e} env steps; writing to {args.out}")
     start = time.perf_counter()
     eval_key = jax.random.PRNGKey(10_000 + args.seed)
@@ -100,7 +101,7 @@ def locomotion_main(description: str, default_out: str, make_task: Callable[[], 
     ep = jax.jit(lambda k: episode(task, policy, norm, k))(eval_key)
     final, history = run.curve[-1], run.history
     results = {
-        "task": task.name, "algorithm": "SHAC", "return": final["return"], "return_std": final["return_std"],
+        "task": task.name, "algorithm": algorithm, "return": final["return"], "return_std": final["return_std"],
         "succeeded_fraction": final["balanced"], "eval_episodes": EVAL_EPISODES,
         "untrained_return": run.curve[0]["return"], "env_steps": history[-1]["env_steps"] if history else 0.0,
         "epochs": cfg.iterations, "wall_clock_s": history[-1]["elapsed"] if history else 0.0,
@@ -110,7 +111,7 @@ def locomotion_main(description: str, default_out: str, make_task: Callable[[], 
     }
     results = write_results(os.path.join(args.out, "results.json"), results)
     learning_curves(history, run.curve, os.path.join(args.out, "learning_curve.png"),
-                    title=f"SHAC on {task.name} (seed {args.seed})", anchor=anchor)
+                    title=f"{algorithm} on {task.name} (seed {args.seed})", anchor=anchor)
     gait_figure(task, ep.q, ep.actions, os.path.join(args.out, "gait.png"), rewards=ep.rewards,
                 title=f"{task.name}: return {float(ep.ret):.0f}, {results['example_episode_distance_m']:.1f} m")
     gait_animation(task, ep.q, os.path.join(args.out, "gait.gif"))

@@ -46,6 +46,8 @@ class SHACConfig(AlgorithmConfig):
         critic_units (tuple[int, ...]): hidden widths of the critic's ELU + LayerNorm MLP, each >= 1 (authors:
             critic_mlp (64, 64)).
         normalize (bool): running observation mean/std normalisation (authors: obs_rms = True).
+        use_critic (bool): False: no critic is trained and the actor's loss is the window's discounted reward alone
+            (no terminal value): the authors' BPTT baseline (``algorithms/bptt.py``, see :meth:`bptt`).
     """
 
     num_envs: int = 64
@@ -66,6 +68,7 @@ class SHACConfig(AlgorithmConfig):
     critic_grad_norm: float | None = 1.0
     critic_units: tuple[int, ...] = (64, 64)
     normalize: bool = True
+    use_critic: bool = True
 
     def __post_init__(self):
         c = "SHACConfig"
@@ -92,6 +95,7 @@ class SHACConfig(AlgorithmConfig):
                 isinstance(u, bool) or not isinstance(u, (int, np.integer)) or u < 1 for u in units):
             raise ValueError(f"SHACConfig.critic_units must be a non-empty tuple of integers >= 1, got {units!r}")
         check_bool(c, "normalize", self.normalize)
+        check_bool(c, "use_critic", self.use_critic)
 
     @classmethod
     def hopper(cls, **overrides) -> "SHACConfig":
@@ -114,6 +118,26 @@ class SHACConfig(AlgorithmConfig):
             overrides: fields to replace.
         """
         return dataclasses.replace(cls(num_envs=64, iterations=2000, actor_lr=2e-3, critic_lr=2e-3), **overrides)
+
+    @classmethod
+    def bptt(cls, task: str, **overrides) -> "SHACConfig":
+        """The SHAC paper's BPTT baseline as its authors ran it (``examples/cfg/bptt/<task>.yaml``): no critic,
+        windows of 128 steps in 32 environments that continue across epochs, 2000 epochs (8.2M env steps), actor lr
+        1e-3 (hopper) or 2e-3 (cheetah, cartpole) decayed linearly, the same Adam betas, gradient clip and observation
+        normalisation as SHAC.
+
+        Args:
+            task: ``"hopper"`` or ``"cheetah"``.
+            overrides: fields to replace.
+
+        Raises:
+            ValueError: for another task name.
+        """
+        rates = {"hopper": 1e-3, "cheetah": 2e-3}
+        if task not in rates:
+            raise ValueError(f"SHACConfig.bptt: task must be one of {sorted(rates)}, got {task!r}")
+        return dataclasses.replace(cls(num_envs=32, short_horizon=128, iterations=2000, actor_lr=rates[task],
+                                       critic_iterations=0, use_critic=False), **overrides)
 
     def env_steps_per_epoch(self) -> int:
         """Simulated control steps of one epoch, ``num_envs * short_horizon``."""

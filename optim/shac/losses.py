@@ -90,7 +90,7 @@ def actor_loss(actor: Actor, target_critic: Critic, normalizer, task, env_state,
 
     Args:
         actor: the actor whose samples act.
-        target_critic: the target critic.
+        target_critic: the target critic, or None: every window's end and episode end is worth 0 (BPTT).
         normalizer: the observation normaliser (frozen over the window), or None.
         task: the task.
         env_state: the ``N`` environments' states (a batched TaskState), cut from the graph at the window's start.
@@ -122,7 +122,7 @@ def actor_loss(actor: Actor, target_critic: Critic, normalizer, task, env_state,
         prog = prog + 1
         done = prog >= horizon
         o2 = observe(s2)
-        v = jax.vmap(target_critic)(norm(o2))
+        v = jnp.zeros(n, dtype) if target_critic is None else jax.vmap(target_critic)(norm(o2))
         ended = jax.vmap(task.terminated)(s2)
         if isinstance(ended, jax.core.Tracer) or bool(jnp.any(ended)):  # a task that can end early
             # an episode that ended early is worth nothing after; one cut by the time limit is bootstrapped

@@ -48,7 +48,7 @@ BAD_FIELDS = (
         ("critic_minibatches", 0), ("critic_minibatches", 10**6), ("target_alpha", 1.5), ("actor_lr", 0.0),
         ("critic_lr", -1e-3), ("lr_end", float("inf")), ("adam_b1", 1.0), ("adam_b2", -0.1), ("adam_eps", 0.0),
         ("actor_grad_norm", 0.0), ("critic_grad_norm", -1.0), ("critic_units", (64, 0)), ("critic_units", ()),
-        ("critic_units", [64, 64]), ("normalize", 1)]]
+        ("critic_units", [64, 64]), ("normalize", 1), ("use_critic", "no")]]
 )
 
 

@@ -24,6 +24,31 @@ def test_defaults_are_the_authors_cartpole_settings():
     assert cfg.env_steps_per_epoch() == 64 * 32
 
 
+
+def test_bptt_presets_are_the_authors_bptt_settings():
+    """``examples/cfg/bptt/{hopper,cheetah}.yaml`` in NVlabs/DiffRL: 32 actors, 128 steps, 2000 epochs, lr 1e-3 /
+    2e-3 decayed linearly to 1e-5, betas (0.7, 0.95), grad norm 1, obs_rms; no critic."""
+    for task, lr in (("hopper", 1e-3), ("cheetah", 2e-3)):
+        cfg = optim.SHACConfig.bptt(task)
+        assert (cfg.num_envs, cfg.short_horizon, cfg.iterations, cfg.actor_lr, cfg.lr_end) == (32, 128, 2000, lr, 1e-5)
+        assert (cfg.adam_b1, cfg.adam_b2, cfg.actor_grad_norm, cfg.normalize, cfg.gamma) == (0.7, 0.95, 1.0, True, 0.99)
+        assert not cfg.use_critic and cfg.env_steps_per_epoch() * cfg.iterations == 8_192_000
+    assert optim.SHACConfig.bptt("hopper", iterations=3).iterations == 3
+    with pytest.raises(ValueError, match=r"task must be one of \['cheetah', 'hopper'\], got 'ant'"):
+        optim.SHACConfig.bptt("ant")
+
+
+def test_without_a_critic_an_epoch_trains_the_actor_and_leaves_the_critic():
+    task = Acrobot.brax_v1(horizon=20)
+    cfg = optim.SHACConfig(num_envs=4, short_horizon=4, iterations=2, critic_units=(6,), use_critic=False)
+    trainer = cfg.make_trainer(task, Actor.for_task(task, units=(8,)))
+    s0 = jax.jit(trainer.init)(jax.random.PRNGKey(0))
+    s1, m = trainer.update(s0)
+    assert np.isnan(float(m["value_loss"])) and float(m["grad_norm"]) > 0
+    assert not np.array_equal(s1.actor.mu.out.weight, s0.actor.mu.out.weight)
+    for a, b in zip(jax.tree_util.tree_leaves(s1.critic), jax.tree_util.tree_leaves(s0.critic)):
+        np.testing.assert_array_equal(a, b)
+
 def test_learning_rates_decay_linearly_to_lr_end():
     cfg = optim.SHACConfig(iterations=500)
     a0, c0 = cfg.learning_rates(0)

@@ -85,6 +85,33 @@ def test_window_loss_matches_its_definition():
     assert not bool(win.dones.any())
 
 
+
+def test_bptt_window_loss_is_the_discounted_return_alone():
+    """Without a critic (``target_critic=None``: the authors' BPTT), the loss is minus the window's discounted reward,
+    nothing added at its end: the SHAC loss with the critic's term taken away."""
+    task, actor, critic, env = _setup()
+    prog = jnp.zeros(3, jnp.int32)
+    loss, _ = jax.jit(lambda e: _loss(actor, None, task, e, prog, _H))(env)
+    with_critic, _ = jax.jit(lambda e: _loss(actor, critic, task, e, prog, _H))(env)
+
+    @jax.jit
+    def reference(env):
+        want, tail = 0.0, 0.0
+        for j in range(3):
+            s = TaskState(env.q[j], env.qd[j])
+            for t in range(_H):
+                a = actor.deterministic(task.observe(s))
+                s2 = task.step(s, a)
+                want -= 0.99**t * task.reward(s, a, s2)
+                s = s2
+            tail -= 0.99**_H * critic(task.observe(s))
+        return want / (_H * 3), tail / (_H * 3)
+
+    ret, tail = reference(env)
+    np.testing.assert_allclose(float(loss), float(ret), rtol=1e-12)
+    np.testing.assert_allclose(float(with_critic) - float(loss), float(tail), rtol=1e-9)
+    assert abs(float(tail)) > 1e-3  # the critic's term is there to be taken away
+
 def test_gradient_is_cut_at_the_window_start():
     """The loss does not depend, through the gradient, on how the window's start state was reached."""
     task, actor, critic, env = _setup()
