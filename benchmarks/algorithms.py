@@ -115,7 +115,7 @@ LAPTOP_CUTS = {
 BUDGETS = {"quick": QUICK, "laptop": LAPTOP}
 
 
-class _BraxPolicy:
+class BraxPolicy:
     """A Brax inference function ``f(obs, key) -> (action, extras)`` with the rollout interface of
     :func:`optim.episode` (stateless; normalisation is inside the Brax parameters)."""
 
@@ -228,7 +228,7 @@ def _run_brax(kind, name, seed, budget, bodies="rods"):
             make_policy, params, _ = fn(**common, **budget, progress_fn=progress)
     except AssertionError as e:
         raise Diverged(curve) from e
-    pol = _BraxPolicy(make_policy(params, deterministic=True))
+    pol = BraxPolicy(make_policy(params, deterministic=True))
     rets, bal = _evaluate(task, pol, None, seed)
     steps = curve[-1][0] if curve and kind != "brax_apg" else float(steps_total)
     return rets, bal, curve, steps, time.perf_counter() - t0

@@ -1,0 +1,203 @@
+"""SHAC, BPTT and Brax PPO on DFlex's Hopper and Cheetah: the SHAC paper's Figure 4 on two CPU cores (issue 44).
+
+    python -m benchmarks.locomotion --tasks cheetah --algos ppo --seeds 0   # train what is missing, then table+plots
+    python -m benchmarks.locomotion --plot-only                            # table and plots from the saved runs
+
+Every algorithm trains on the same task objects (``Hopper.diffrl()``, ``Cheetah.diffrl()``; Brax PPO sees them through
+:class:`lagrange.interop.brax.BraxEnv`, unchanged) and every final policy is evaluated deterministically on the same 16
+random starts (``PRNGKey(10_000 + seed)``, 1000-step episodes), as the examples do.
+
+- **SHAC**: ``examples/hopper_shac.py`` / ``cheetah_shac.py`` as a user runs them (``SHACConfig.hopper()`` /
+  ``cheetah()``: the authors' configs, 16.4M / 4.1M env steps), 20 evaluations along the way.
+- **BPTT**: the SHAC paper's BPTT baseline as its authors ran it (``SHACConfig.bptt(task)``: no critic, 128-step
+  windows in 32 environments, 8.2M env steps), through the same driver.
+- **Brax PPO**: Brax's PPO (``brax.training.agents.ppo``) with the SHAC authors' PPO settings
+  (``examples/cfg/ppo/<task>.yaml``: 1024 environments x 32 steps per update, minibatches of 8192, 5 epochs, gamma
+  0.99, GAE 0.95, lr 3e-4 with the adaptive-KL schedule at 0.008, clip 0.2, no entropy bonus, reward scale 0.01,
+  gradient clip 1, value-loss weight 4 on rl_games' halved MSE, observation normalisation, ELU MLPs [128, 64, 32]
+  for the policy and the value, the latter separate where rl_games shares a trunk) for 10x SHAC's env steps on the
+  cheetah (41M, the issue's goal) and SHAC's on the hopper (16.4M). Its curve is Brax's own deterministic evaluator
+  (16 environments); its wall-clock includes compilation and those evaluations.
+
+SHAC and BPTT runs checkpoint every epoch and resume where a killed benchmark left them; a PPO run is redone from its
+start if killed (Brax's trainer keeps no resumable state here). Each finished run is
+``--runs-dir/<algo>_<task>_<seed>.json``; the table ``benchmarks/results/locomotion.{json,md}`` and the plots
+``docs/img/locomotion_<task>.png`` (return against env steps and against wall-clock, every seed) are made from all of
+them. ``--plot-only`` restores the run files from the JSON on a fresh clone.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import json
+import os
+import pathlib
+import platform
+import time
+
+import jax
+import numpy as np
+
+from benchmarks._cli import markdown_table, save_figure, subplots
+from benchmarks.algorithms import BraxPolicy
+from lagrange.tasks import Cheetah, Hopper
+from optim import SHACConfig, evaluate
+from optim.checkpoint import write_json, write_text
+from optim.locomotion_cli import locomotion_main
+
+TASKS = {"hopper": Hopper.diffrl, "cheetah": Cheetah.diffrl}
+ALGORITHMS = ("shac", "bptt", "ppo")
+LABELS = {"shac": "SHAC", "bptt": "BPTT", "ppo": "Brax PPO"}
+CONFIGS = {"shac": {"hopper": SHACConfig.hopper(), "cheetah": SHACConfig.cheetah()},
+           "bptt": {t: SHACConfig.bptt(t) for t in TASKS}}
+PPO_STEPS = {"hopper": 16_384_000, "cheetah": 40_960_000}
+PPO = dict(num_envs=1024, unroll_length=32, batch_size=256, num_minibatches=4, num_updates_per_batch=5,
+           discounting=0.99, gae_lambda=0.95, learning_rate=3e-4, learning_rate_schedule="ADAPTIVE_KL",
+           desired_kl=0.008, entropy_cost=0.0, clipping_epsilon=0.2, reward_scaling=0.01, max_grad_norm=1.0,
+           vf_loss_coefficient=4.0, normalize_observations=True, num_evals=21)
+# the AHAC paper's data for DFlex's hopper (1000-step episodes); none is published for the cheetah
+ANCHORS = {"hopper": {"SHAC": 4800, "PPO": 4775}}
+EVAL_EPISODES = 16
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+
+
+def run_differentiable(algo, task, seed, runs_dir):
+    """SHAC or BPTT through the examples' driver in ``runs_dir/<algo>_<task>_<seed>/`` (resumed if a checkpoint is
+    there); returns the run record."""
+    out = os.path.join(runs_dir, f"{algo}_{task}_{seed}")
+    argv = ["--seed", str(seed), "--out", out, "--no-progress"]
+    if os.path.exists(os.path.join(out, "checkpoint.eqx")):
+        argv.append("--resume")
+    cfg = CONFIGS[algo][task]
+    r = locomotion_main(f"{LABELS[algo]} on {task}", out, TASKS[task], cfg, cfg, argv=argv)
+    curve = [(c["env_steps"], c["elapsed"], c["return"]) for c in r["curve"]]
+    return {"return": r["return"], "return_std": r["return_std"], "env_steps": r["env_steps"],
+            "wall_clock": r["wall_clock_s"], "curve": curve, "config": r["config"]}
+
+
+def run_ppo(task_name, seed, runs_dir):
+    """Brax PPO on the task through the Brax adapter; returns the run record."""
+    from brax.training.agents.ppo import networks as ppo_networks
+    from brax.training.agents.ppo.train import train as ppo_train
+    from flax import linen
+
+    from lagrange.interop.brax import BraxEnv, brax_training_compat
+
+    task = TASKS[task_name]()
+    nets = functools.partial(ppo_networks.make_ppo_networks, policy_hidden_layer_sizes=(128, 64, 32),
+                             value_hidden_layer_sizes=(128, 64, 32), activation=linen.elu)
+    curve, t0 = [], time.perf_counter()
+
+    def progress(step, metrics):
+        curve.append((float(step), time.perf_counter() - t0, float(metrics["eval/episode_reward"])))
+        print(f"PPO {task_name} seed {seed}: {float(step):.3g} steps, {curve[-1][1]:.0f} s, "
+              f"return {curve[-1][2]:.0f}", flush=True)
+
+    with brax_training_compat():
+        make_policy, params, _ = ppo_train(environment=BraxEnv(task), num_timesteps=PPO_STEPS[task_name],
+                                           episode_length=task.horizon, seed=seed, deterministic_eval=True,
+                                           num_eval_envs=EVAL_EPISODES, network_factory=nets, progress_fn=progress,
+                                           **PPO)
+    wall = time.perf_counter() - t0
+    pol = BraxPolicy(make_policy(params, deterministic=True))
+    rets, _ = jax.device_get(jax.jit(lambda k: evaluate(task, pol, None, k, EVAL_EPISODES))(
+        jax.random.PRNGKey(10_000 + seed)))
+    return {"return": float(np.mean(rets)), "return_std": float(np.std(rets)), "env_steps": curve[-1][0],
+            "wall_clock": wall, "curve": curve, "config": {**PPO, "num_timesteps": PPO_STEPS[task_name]}}
+
+
+def train_one(algo, task, seed, runs_dir):
+    """Train (or resume) one run and write its record ``runs_dir/<algo>_<task>_<seed>.json``."""
+    load0, cpu0 = os.getloadavg(), time.process_time()
+    r = run_ppo(task, seed, runs_dir) if algo == "ppo" else run_differentiable(algo, task, seed, runs_dir)
+    record = {"algo": algo, "task": task, "seed": seed, **r, "cpu_seconds": time.process_time() - cpu0,
+              "loadavg_start": list(load0), "loadavg_end": list(os.getloadavg())}
+    write_json(os.path.join(runs_dir, f"{algo}_{task}_{seed}.json"), record)
+    return record
+
+
+def load_runs(runs_dir):
+    """``{task: {algo: [record, ...]}}`` from the run files, seeds in order."""
+    found = [json.loads(p.read_text()) for p in sorted(pathlib.Path(runs_dir).glob("*_*_*.json"))]
+    runs: dict = {}
+    for task in TASKS:
+        for algo in ALGORITHMS:
+            rs = sorted((r for r in found if r["task"] == task and r["algo"] == algo), key=lambda r: r["seed"])
+            if rs:
+                runs.setdefault(task, {})[algo] = rs
+    return runs
+
+
+def write_table(runs, out_dir):
+    rows = []
+    for task, algos in runs.items():
+        for algo, rs in algos.items():
+            rets = [r["return"] for r in rs]
+            rows.append({"task": task, "algorithm": LABELS[algo], "seeds": len(rs),
+                         "return": f"{np.mean(rets):.0f} +- {np.std(rets):.0f}",
+                         "per seed": ", ".join(f"{x:.0f}" for x in rets),
+                         "env steps": f"{np.mean([r['env_steps'] for r in rs]):.3g}",
+                         "wall-clock [s]": f"{np.mean([r['wall_clock'] for r in rs]):.0f}",
+                         "published": str(ANCHORS.get(task, {}).get(LABELS[algo].split()[-1], "-"))})
+    machine = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, shared"
+    md = (f"# SHAC, BPTT and Brax PPO on DFlex's Hopper and Cheetah\n\n{machine}. Regenerate: "
+          "`python -m benchmarks.locomotion --plot-only`.\n\n"
+          + markdown_table(rows, list(rows[0]) if rows else []) + "\n")
+    write_text(os.path.join(out_dir, "locomotion.md"), md)
+    write_json(os.path.join(out_dir, "locomotion.json"), {"machine": machine, "rows": rows, "runs": runs})
+
+
+def plot_task(task, algos, path):
+    fig, axes = subplots(1, 2, figsize=(10, 3.8), sharey=True)
+    for i, (algo, rs) in enumerate(algos.items()):
+        for j, r in enumerate(rs):
+            c = np.asarray(r["curve"], float).reshape(-1, 3)
+            for ax, col in zip(axes, (0, 1)):
+                ax.plot(c[:, col], c[:, 2], color=f"C{i}", lw=1.2, alpha=0.85,
+                        label=f"{LABELS[algo]} ({len(rs)} seed{'s' * (len(rs) > 1)})" if j == 0 else None)
+    for name, value in ANCHORS.get(task, {}).items():
+        for ax in axes:
+            ax.axhline(value, color="k", ls="--" if name == "SHAC" else ":", lw=0.8)
+        axes[0].annotate(f"published {name} {value}", (0, value), fontsize=7, va="bottom")
+    axes[0].set_xlabel("simulated environment steps")
+    axes[1].set_xlabel("wall-clock on 2 shared CPU cores [s]")
+    axes[1].set_xscale("log")
+    axes[0].set_ylabel("return (deterministic policy)")
+    axes[0].legend(fontsize=8, loc="lower right")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    fig.suptitle(f"{task}: SHAC, BPTT and Brax PPO on the same exact dynamics")
+    save_figure(fig, path, dpi=100)
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--tasks", nargs="+", default=list(TASKS), choices=list(TASKS))
+    p.add_argument("--algos", nargs="+", default=list(ALGORITHMS), choices=ALGORITHMS)
+    p.add_argument("--seeds", nargs="+", type=int, default=[0])
+    p.add_argument("--runs-dir", default="runs/locomotion", help="per-run folders and records")
+    p.add_argument("--plot-only", action="store_true", help="only the table and plots from the saved runs")
+    args = p.parse_args(argv)
+    results = ROOT / "benchmarks" / "results"
+    if args.plot_only and not any(pathlib.Path(args.runs_dir).glob("*.json")):
+        saved = json.loads((results / "locomotion.json").read_text())
+        for algos in saved["runs"].values():
+            for rs in algos.values():
+                for r in rs:
+                    write_json(os.path.join(args.runs_dir, f"{r['algo']}_{r['task']}_{r['seed']}.json"), r)
+    if not args.plot_only:
+        for task in args.tasks:
+            for algo in args.algos:
+                for seed in args.seeds:
+                    if not os.path.exists(os.path.join(args.runs_dir, f"{algo}_{task}_{seed}.json")):
+                        train_one(algo, task, seed, args.runs_dir)
+    runs = load_runs(args.runs_dir)
+    write_table(runs, results)
+    for task, algos in runs.items():
+        plot_task(task, algos, ROOT / "docs" / "img" / f"locomotion_{task}.png")
+    print((results / "locomotion.md").read_text())
+
+
+if __name__ == "__main__":
+    main()
