@@ -1,12 +1,15 @@
-"""Shared helpers of the benchmark scripts: where they write, the ``--bodies`` flag, the paper tasks by name, a
-markdown table of result rows, figures, and the MJCF files that other packages ship."""
+"""Shared helpers of the benchmark scripts: where they write, the ``--bodies`` flag, the paper tasks by name, the
+per-run result files of the training benchmarks, a markdown table of result rows, figures, and the MJCF files that
+other packages ship."""
 
 from __future__ import annotations
 
 import importlib.util
+import json
 import pathlib
 
 from lagrange.tasks import BODY_SETS, PAPER_TASKS
+from optim.checkpoint import write_json
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 RESULTS = REPO / "benchmarks" / "results"  # the published tables (JSON, markdown)
@@ -63,6 +66,30 @@ def marked_bodies(result: dict) -> str:
     """The bodies a result dict (or a config dict) names: its ``"bodies"``, the rods where there is none (the inverse
     of :func:`bodies_marker`; results and configs from before the field existed are on the rods)."""
     return result.get("bodies", "rods")
+
+
+def run_file(folder, algo: str, task: str, seed: int) -> pathlib.Path:
+    """Where a training benchmark keeps one run's result: ``folder/<algo>_<task>_<seed>.json``."""
+    return pathlib.Path(folder, f"{algo}_{task}_{seed}.json")
+
+
+def read_runs(folder) -> list[dict]:
+    """Every run file (:func:`run_file`) in ``folder``, none where it does not exist, in no particular order."""
+    files = pathlib.Path(folder).glob("*_*.json")
+    return [json.loads(p.read_text()) for p in files if p.stem.rpartition("_")[2].isdigit()]
+
+
+def restore_runs(folder, published: pathlib.Path, runs_of=lambda saved: saved) -> None:
+    """On a fresh clone (``runs/`` is not in git: no run file in ``folder``), the runs of the ``published`` JSON
+    (``runs_of(its content)``, a list of run dicts) written back to their run files, so that the tables keep them and
+    they are not trained again."""
+    pathlib.Path(folder).mkdir(parents=True, exist_ok=True)
+    if read_runs(folder) or not published.exists():
+        return
+    runs = runs_of(json.loads(published.read_text()))
+    for r in runs:
+        write_json(run_file(folder, r["algo"], r["task"], r["seed"]), r, indent=2)
+    print(f"restored {len(runs)} run files into {folder} from {published}")
 
 
 def markdown_table(rows, keys) -> str:

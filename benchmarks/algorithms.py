@@ -36,30 +36,28 @@ not published. ``--plot-only`` regenerates them from the saved runs (on a fresh 
 from __future__ import annotations
 
 import argparse
+import functools
+import importlib
 import json
 import os
+import pathlib
 import platform
 import time
 
-import matplotlib
+import jax
+import jax.numpy as jnp
+import numpy as np
 
-matplotlib.use("Agg")
-
-import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from benchmarks._cli import (add_bodies_flag, bodies_marker, bodies_suffix, marked_bodies, outputs,  # noqa: E402
-                             paper_task)
-from optim import CEAPGConfig, SHACConfig, evaluate  # noqa: E402
-from optim.checkpoint import FORMAT as CHECKPOINT_FORMAT, write_json, write_text  # noqa: E402
-from policies import GRUPolicy  # noqa: E402
-from policies.actor_critic import Actor  # noqa: E402
+from benchmarks._cli import (add_bodies_flag, bodies_marker, bodies_suffix, marked_bodies, outputs, paper_task,
+                             read_runs, restore_runs, run_file, save_figure, subplots)
+from benchmarks.paper_tables import EVAL_EPISODES, WIDTH, evaluate_final
+from optim import CEAPGConfig, SHACConfig
+from optim.checkpoint import FORMAT as CHECKPOINT_FORMAT, write_json, write_text
+from policies import GRUPolicy
+from policies.actor_critic import Actor
 
 TASKS = ("acrobot", "cartpole", "double_cartpole")
 ALGORITHMS = ("ce_apg", "shac", "ppo", "sac", "brax_apg")
-EVAL_EPISODES = 16
 HORIZON = 500
 
 # Paper Table I (mean, std over 8 seeds); the CE-APG paper calls the cartpole "Pendulum" and the
@@ -131,8 +129,7 @@ class BraxPolicy:
 
 
 def _evaluate(task, policy, normalizer, seed):
-    run = jax.jit(lambda key: evaluate(task, policy, normalizer, key, EVAL_EPISODES))
-    rets, bal = jax.device_get(run(jax.random.PRNGKey(10_000 + seed)))
+    rets, bal = jax.device_get(evaluate_final(task, policy, normalizer, seed))
     return np.asarray(rets, float), np.asarray(bal, bool)
 
 
@@ -140,48 +137,36 @@ def _evaluate(task, policy, normalizer, seed):
 # one run per algorithm: returns (final returns, balanced flags, curve, env_steps, wall_clock)
 
 
-WIDTH = {"acrobot": 16, "cartpole": 16, "double_cartpole": 32}  # the CE-APG paper's GRU width per task
-
-
 def run_ce_apg(name, seed, budget, bodies="rods"):
     budget = dict(budget)
-    preset = budget.pop("preset", "paper")
-    if preset == "laptop":  # this project's laptop protocol: (sin, cos) observations on the acrobot
+    if budget.pop("preset", "paper") == "laptop":  # this project's laptop protocol: (sin, cos) acrobot observations
         cfg = CEAPGConfig.laptop(name, **budget)
         task = paper_task(name, bodies, **({"trig": True} if name == "acrobot" else {}))
     else:
-        cfg = CEAPGConfig.paper(**budget)
-        task = paper_task(name, bodies)
+        cfg, task = CEAPGConfig.paper(**budget), paper_task(name, bodies)
     trainer = cfg.make_trainer(task, GRUPolicy.for_task(task, WIDTH[name]))
-    t0 = time.perf_counter()
-    state = trainer.init(jax.random.PRNGKey(seed))
-    curve, steps = [], 0.0
-    for _ in range(cfg.iterations):
-        state, _m = trainer.update(state)
-        steps += cfg.env_steps_per_iteration(task.horizon)
-        pol, norm = trainer.policy(state, "best")
-        rets, _ = _evaluate(trainer.task, pol, norm, seed)
-        curve.append((steps, time.perf_counter() - t0, float(rets.mean())))
-    rets, bal = _evaluate(trainer.task, *trainer.policy(state, "best"), seed)
-    return rets, bal, curve, steps, time.perf_counter() - t0
+    return _train(trainer, cfg.iterations, cfg.env_steps_per_iteration(task.horizon), 1, seed, "best")
 
 
 def run_shac(name, seed, budget, bodies="rods"):
-    cfg = SHACConfig(**budget)
-    task = paper_task(name, bodies)
+    cfg, task = SHACConfig(**budget), paper_task(name, bodies)
     trainer = cfg.make_trainer(task, Actor.for_task(task))
+    return _train(trainer, cfg.iterations, cfg.env_steps_per_epoch(), max(1, cfg.iterations // 10), seed)
+
+
+def _train(trainer, iterations, steps_per_iteration, every, seed, *which):
+    """``iterations`` updates of ``trainer`` from ``PRNGKey(seed)``, its policy (``trainer.policy(state, *which)``)
+    evaluated after every ``every``-th update and the last."""
     t0 = time.perf_counter()
-    every = max(1, cfg.iterations // 10)
     state = trainer.init(jax.random.PRNGKey(seed))
-    curve, steps = [], 0.0
-    for epoch in range(1, cfg.iterations + 1):
-        state, _m = trainer.update(state)
-        steps += cfg.env_steps_per_epoch()
-        if epoch % every == 0 or epoch == cfg.iterations:
-            rets, _ = _evaluate(trainer.task, *trainer.policy(state), seed)
-            curve.append((steps, time.perf_counter() - t0, float(rets.mean())))
-    rets, bal = _evaluate(trainer.task, *trainer.policy(state), seed)
-    return rets, bal, curve, steps, time.perf_counter() - t0
+    curve = []
+    for i in range(1, iterations + 1):
+        state, _ = trainer.update(state)
+        if i % every == 0 or i == iterations:
+            rets, _ = _evaluate(trainer.task, *trainer.policy(state, *which), seed)
+            curve.append((float(i * steps_per_iteration), time.perf_counter() - t0, float(rets.mean())))
+    rets, bal = _evaluate(trainer.task, *trainer.policy(state, *which), seed)
+    return rets, bal, curve, float(iterations * steps_per_iteration), time.perf_counter() - t0
 
 
 class Diverged(Exception):
@@ -201,19 +186,9 @@ def _run_brax(kind, name, seed, budget, bodies="rods"):
     budget = dict(budget)
     curve = []
     t0 = time.perf_counter()
-    common = dict(environment=env, episode_length=HORIZON, seed=seed, deterministic_eval=True, num_eval_envs=16)
-    per_eval = 1  # env steps per step Brax reports
-    if kind == "ppo":
-        from brax.training.agents.ppo.train import train as fn
-
-        steps_total = budget["num_timesteps"]
-    elif kind == "sac":
-        from brax.training.agents.sac.train import train as fn
-
-        steps_total = budget["num_timesteps"]
-    else:
-        from brax.training.agents.apg.train import train as fn
-
+    fn = importlib.import_module(f"brax.training.agents.{kind.removeprefix('brax_')}.train").train
+    per_eval, steps_total = 1, budget.get("num_timesteps")  # env steps per step Brax reports; in all
+    if kind == "brax_apg":
         per_update = budget["num_envs"] * budget["horizon_length"]
         updates = max(1, int(budget.pop("env_steps")) // per_update)
         budget["policy_updates"] = updates
@@ -225,31 +200,18 @@ def _run_brax(kind, name, seed, budget, bodies="rods"):
                                              float(m["eval/episode_reward"])))
     try:
         with brax_training_compat():
-            make_policy, params, _ = fn(**common, **budget, progress_fn=progress)
+            make_policy, params, _ = fn(environment=env, episode_length=HORIZON, seed=seed,
+                                        deterministic_eval=True, num_eval_envs=16, **budget, progress_fn=progress)
     except AssertionError as e:
         raise Diverged(curve) from e
-    pol = BraxPolicy(make_policy(params, deterministic=True))
-    rets, bal = _evaluate(task, pol, None, seed)
+    rets, bal = _evaluate(task, BraxPolicy(make_policy(params, deterministic=True)), None, seed)
     steps = curve[-1][0] if curve and kind != "brax_apg" else float(steps_total)
     return rets, bal, curve, steps, time.perf_counter() - t0
 
 
-RUNNERS = {
-    "ce_apg": run_ce_apg,
-    "shac": run_shac,
-    "ppo": lambda n, s, b, bodies="rods": _run_brax("ppo", n, s, b, bodies),
-    "sac": lambda n, s, b, bodies="rods": _run_brax("sac", n, s, b, bodies),
-    "brax_apg": lambda n, s, b, bodies="rods": _run_brax("brax_apg", n, s, b, bodies),
-}
-
+RUNNERS = {"ce_apg": run_ce_apg, "shac": run_shac}
+RUNNERS |= {kind: functools.partial(_run_brax, kind) for kind in ("ppo", "sac", "brax_apg")}
 LABELS = {"ce_apg": "CE-APG", "shac": "SHAC", "ppo": "Brax PPO", "sac": "Brax SAC", "brax_apg": "Brax APG"}
-
-
-# ---------------------------------------------------------------------------------------------
-
-
-def _run_path(runs_dir, algo, task, seed):
-    return os.path.join(runs_dir, f"{algo}_{task}_{seed}.json")
 
 
 def train_one(algo, task, seed, budget, budget_name, bodies="rods"):
@@ -275,22 +237,20 @@ def import_ce_apg(task, seed, src_dir, bodies="rods"):
     in ``src_dir`` (None when absent). Its curve is the best candidate's training fitness per iteration
     from the checkpoint header (``.eqx`` beside it), when there is one; it has no per-episode returns.
     Exits if the file's run was trained on other bodies than ``bodies``."""
-    path = os.path.join(src_dir, f"ce_apg_{task}_{seed}.json")
-    if not os.path.exists(path):
+    path = run_file(src_dir, "ce_apg", task, seed)
+    if not path.exists():
         return None
-    with open(path) as f:
-        r = json.load(f)
+    r = json.loads(path.read_text())
     trained_on = marked_bodies(r.get("config") or {})
     if trained_on != bodies:
         raise SystemExit(f"{path} was trained on bodies={trained_on!r}, not --bodies {bodies}: pick the paper_tables "
                          f"folder of those bodies (e.g. runs/paper_tables/laptop_braxv1 for brax_v1)")
     curve, kind = [], None
-    ckpt = path[:-len(".json")] + ".eqx"
-    if os.path.exists(ckpt):
-        hist = _checkpoint_history(ckpt)
+    if path.with_suffix(".eqx").exists():
+        hist = _checkpoint_history(path.with_suffix(".eqx"))
         curve = [(h["env_steps"], h["elapsed"], h["best_return"]) for h in hist if "best_return" in h]
         kind = "training fitness of the best candidate"
-    return {"algo": "ce_apg", "task": task, "seed": seed, "budget": r.get("budget"), "source": path,
+    return {"algo": "ce_apg", "task": task, "seed": seed, "budget": r.get("budget"), "source": str(path),
             "return": float(r["return"]), "returns": None, "balanced_fraction": r.get("balanced_fraction"),
             "balanced": bool(r["balanced"]), "env_steps": float(r["env_steps"]),
             "wall_clock": float(r["wall_clock_seconds"]), "cpu_seconds": None, "config": r.get("config"),
@@ -307,32 +267,17 @@ def _checkpoint_history(path) -> list:
     return head.get("history", [])
 
 
-def restore_runs(json_path, runs_dir):
-    """Write the runs saved in ``json_path`` back as per-run files in ``runs_dir``; returns how many."""
-    with open(json_path) as f:
-        saved = json.load(f)
-    count = 0
-    for algos in saved.get("runs", {}).values():
-        for rs in algos.values():
-            for r in rs:
-                write_json(_run_path(runs_dir, r["algo"], r["task"], r["seed"]), r)
-                count += 1
-    return count
+def _runs(results) -> list:
+    """Every run of a results dict (``{"runs": {task: {algo: [run, ...]}}}``), in its order."""
+    return [r for algos in results.get("runs", {}).values() for rs in algos.values() for r in rs]
 
 
 def load_runs(runs_dir):
     """Every run file in ``runs_dir`` as ``{task: {algo: [run, ...]}}`` (tasks, algorithms, seeds in order)."""
-    found = []
-    for fname in os.listdir(runs_dir) if os.path.isdir(runs_dir) else []:
-        if fname.endswith(".json"):
-            with open(os.path.join(runs_dir, fname)) as f:
-                found.append(json.load(f))
     runs: dict = {}
-    for task in TASKS:
-        for algo in ALGORITHMS:
-            rs = sorted((r for r in found if r["task"] == task and r["algo"] == algo), key=lambda r: r["seed"])
-            if rs:
-                runs.setdefault(task, {})[algo] = rs
+    for r in sorted(read_runs(runs_dir), key=lambda r: (TASKS.index(r["task"]), ALGORITHMS.index(r["algo"]),
+                                                         r["seed"])):
+        runs.setdefault(r["task"], {}).setdefault(r["algo"], []).append(r)
     return runs
 
 
@@ -365,36 +310,30 @@ def main(argv=None):
     tag = f"algorithms_{budget_name}{suffix}"
     runs_dir = os.path.join(args.runs_dir, budget_name + suffix)
     out, img = (args.out, args.out) if args.out else outputs(budget_name == "quick")
-    os.makedirs(runs_dir, exist_ok=True)
-    json_path = os.path.join(out, f"{tag}.json")
-    if not any(f.endswith(".json") for f in os.listdir(runs_dir)) and os.path.exists(json_path):
-        restored = restore_runs(json_path, runs_dir)  # runs/ is not in git: a fresh clone starts from the table
-        print(f"restored {restored} run files into {runs_dir} from {json_path}")
+    json_path = pathlib.Path(out, f"{tag}.json")
+    restore_runs(runs_dir, json_path, _runs)
     for task in [] if args.plot_only else args.tasks:
         for algo in args.algos:
             for seed in seeds:
-                path = _run_path(runs_dir, algo, task, seed)
+                path, what = run_file(runs_dir, algo, task, seed), f"{task:16s} {LABELS[algo]:9s} seed {seed}"
                 if algo == "ce_apg" and args.ce_apg_from:
                     run = import_ce_apg(task, seed, args.ce_apg_from, args.bodies)
                     if run is None:
-                        print(f"{task:16s} {LABELS[algo]:9s} seed {seed}: no result in {args.ce_apg_from}, skipped")
+                        print(f"{what}: no result in {args.ce_apg_from}, skipped")
                         continue
-                elif os.path.exists(path) and not args.force:
-                    print(f"{task:16s} {LABELS[algo]:9s} seed {seed}: done already ({path})")
+                elif path.exists() and not args.force:
+                    print(f"{what}: done already ({path})")
                     continue
                 else:
-                    print(f"{task:16s} {LABELS[algo]:9s} seed {seed} ...", flush=True)
+                    print(f"{what} ...", flush=True)
                     run = train_one(algo, task, seed, dict(budgets[algo]), budget_name, args.bodies)
                 write_json(path, run)
-                if run.get("failed"):
-                    print(f"{task:16s} {LABELS[algo]:9s} seed {seed}: FAILED {run['failed']}", flush=True)
-                else:
-                    print(f"{task:16s} {LABELS[algo]:9s} seed {seed}: return {run['return']:.1f}, balanced "
-                          f"{run['balanced']}, {run['env_steps']:.2e} steps, {run['wall_clock']:.0f} s", flush=True)
+                print(f"{what}: FAILED {run['failed']}" if run.get("failed") else f"{what}: return "
+                      f"{run['return']:.1f}, balanced {run['balanced']}, {run['env_steps']:.2e} steps, "
+                      f"{run['wall_clock']:.0f} s", flush=True)
     runs = load_runs(runs_dir)
-    results = {"meta": {"budget": budget_name, "quick": budget_name == "quick",
-                        **bodies_marker(args.bodies),
-                        "seeds": sorted({r["seed"] for a in runs.values() for rs in a.values() for r in rs}),
+    results = {"meta": {"budget": budget_name, "quick": budget_name == "quick", **bodies_marker(args.bodies),
+                        "seeds": sorted({r["seed"] for r in _runs({"runs": runs})}),
                         "budgets": {a: budgets[a] for a in ALGORITHMS},
                         "cuts": LAPTOP_CUTS if budget_name == "laptop" else {},
                         "eval_episodes": EVAL_EPISODES, "jax": jax.__version__, "devices": str(jax.devices()),
@@ -402,7 +341,6 @@ def main(argv=None):
                "runs": runs}
     write_json(json_path, results)
     write_table(results, os.path.join(out, f"{tag}.md"))
-    os.makedirs(img, exist_ok=True)
     for name in results["runs"]:
         plot_task(name, results["runs"][name], os.path.join(img, f"{tag}_{name}.png"), budget_name, args.bodies)
     return results
@@ -453,7 +391,7 @@ def write_table(results, path):
             seeds = f"{len(all_runs)}" + (f" ({n_failed} failed)" if n_failed else "")
             lines.append(f"| {name} | {LABELS[algo]} | {ret} | {seeds} | {be} | {bs} | {st:.2e} | {wc:.0f} | "
                          f"{_cpu_share(runs)} | {pap} |")
-    failed = [x for algos in results["runs"].values() for rs in algos.values() for x in rs if x.get("failed")]
+    failed = [x for x in _runs(results) if x.get("failed")]
     if failed:
         groups: dict = {}
         for x in failed:
@@ -467,8 +405,7 @@ def write_table(results, path):
     cuts = {a: c for a, c in (results["meta"].get("cuts") or {}).items() if a in present and a in trained}
     if cuts:
         lines += [""] + [f"Cut from the paper: {LABELS[a]} {c}." for a, c in cuts.items()]
-    imported = [x for a in results["runs"].values() for rs in a.values() for x in rs
-                if x.get("source") not in (None, "trained")]
+    imported = [x for x in _runs(results) if x.get("source") not in (None, "trained")]
     if imported:
         keys = ("num_candidates", "num_elites", "iterations", "apg_steps", "episodes", "lr_start", "lr_end",
                 "init_std", "width", "trig_observation")
@@ -483,7 +420,7 @@ def write_table(results, path):
 
 def plot_task(name, algos, path, budget, bodies="rods"):
     quick = budget == "quick"
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    fig, axes = subplots(1, 2, figsize=(11, 4))
     for algo, runs in algos.items():
         color = f"C{ALGORITHMS.index(algo)}"  # one colour per algorithm across the tasks' plots
         for j, run in enumerate([x for x in runs if not x.get("failed")]):
@@ -515,9 +452,7 @@ def plot_task(name, algos, path, budget, bodies="rods"):
     note = {"quick": " (QUICK smoke-scale budgets, not a comparison)",
             "laptop": " (LAPTOP budgets; dotted: paper Table I)"}[budget]
     fig.suptitle(f"{name}{'' if bodies == 'rods' else f' on the {bodies} bodies'}{note}")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, pathlib.Path(path), dpi=110)
 
 
 if __name__ == "__main__":

@@ -6,8 +6,8 @@
     python benchmarks/paper_tables.py --budget paper   # the authors' protocol (about 1e9 env steps per CE-APG run)
     python benchmarks/paper_tables.py --budget smoke --seeds 0   # a pipeline check (numbers meaningless; runs/)
 
-The published acrobot variants (``--tasks acrobot --algos ce_apg --set max_grad_norm=none`` and; they were trained
-before the acrobot's preset clipped its gradients):
+The published acrobot variants (``--tasks acrobot --algos ce_apg --set max_grad_norm=none`` and the following: they
+were trained before the acrobot's preset clipped its gradients):
 
     --variant ep1 --set episodes=1                                  # one episode per APG step
     --variant braxv1ep1 --set bodies=brax_v1 --set episodes=1
@@ -16,19 +16,17 @@ before the acrobot's preset clipped its gradients):
     --variant braxv1warmupep1 --set bodies=brax_v1 --set episodes=1 \
         --set warmup_horizons=300,400 --set warmup_iterations=20 --set warmup_upright=0
 
-For every (algorithm, task, seed) it trains, evaluates the final deterministic policy on 16 fixed random
-starts, and records the mean return, whether every evaluation episode balanced, env steps and wall-clock
-seconds. Runs are checkpointed under ``--out`` and skipped when their result exists, so the benchmark can
-be resumed; a result trained with another config than the selected one stops the script, naming the changed
-fields. Writes ``--out/<budget>/results.json`` and ``tables.md`` (mean +- std over seeds, fraction of seeds that
-balance, the paper's numbers beside ours), and the same as
-``benchmarks/results/paper_tables_<budget>_{results.json,tables.md}``, from every finished run of the budget
-(``--budget smoke``: under ``runs/benchmarks/``, not published).
-``--set FIELD=VALUE`` (repeatable) changes a field of every selected algorithm's config, or of the task and policy
-it trains (``bodies``, ``horizon``, ``policy``, ``width``, ``trig_observation``: :class:`Protocol`); such runs need a
-``--variant NAME`` and go to ``--out/<budget>_<NAME>/`` and ``paper_tables_<budget>_<NAME>_*``, apart from the
-budget's own tables. On a fresh clone (no ``--out`` runs yet) the published runs are restored first, so the
-tables keep them and only missing runs are trained.
+For every (algorithm, task, seed) it trains, evaluates the final deterministic policy on 16 fixed random starts and
+records the mean return, whether every evaluation episode balanced, env steps and wall-clock seconds. Runs are
+checkpointed under ``--out`` and skipped when their result exists, so a killed benchmark resumes; a result trained
+with another config than the selected one stops the script, naming the changed fields. From every finished run of the
+budget it writes ``--out/<budget>/{results.json,tables.md}`` (mean +- std over seeds, the fraction of seeds that
+balance, the paper's numbers beside ours) and the same as ``benchmarks/results/paper_tables_<budget>_*`` (``--budget
+smoke``: under ``runs/benchmarks/``, not published). ``--set FIELD=VALUE`` (repeatable) changes a field of every
+selected algorithm's config, or of the task and policy it trains (``bodies``, ``horizon``, ``policy``, ``width``,
+``trig_observation``: :class:`Protocol`); such runs need a ``--variant NAME`` and are kept apart, in
+``--out/<budget>_<NAME>/`` and ``paper_tables_<budget>_<NAME>_*``. On a fresh clone the published runs are restored
+first, so the tables keep them and only missing runs are trained.
 """
 
 from __future__ import annotations
@@ -37,6 +35,7 @@ import argparse
 import dataclasses
 import json
 import os
+import pathlib
 import sys
 import time
 
@@ -45,7 +44,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 import jax  # noqa: E402
 import numpy as np  # noqa: E402
 
-from benchmarks._cli import outputs, paper_task  # noqa: E402
+from benchmarks._cli import outputs, paper_task, read_runs, restore_runs, run_file  # noqa: E402
 from lagrange.tasks import BODY_SETS, PAPER_TASKS  # noqa: E402
 from optim import (APGConfig, AlgorithmConfig, CEAPGConfig, CEMConfig, PAPGConfig, checkpoint, evaluate,  # noqa: E402
                    train)
@@ -65,9 +64,14 @@ PAPER = {
 }
 PAPER_NOTE = {"apg": "paper: Brax's APG (stochastic MLP), Table I"}
 EVAL_EPISODES = 16
-
-
 WIDTH = {"cartpole": 16, "acrobot": 16, "double_cartpole": 32}  # the paper's GRU width per task
+
+
+def evaluate_final(task, policy, normalizer, seed):
+    """A final policy's ``(returns, balanced flags)`` on the :data:`EVAL_EPISODES` random starts of
+    ``PRNGKey(10_000 + seed)``: the evaluation of every training benchmark."""
+    run = jax.jit(lambda key: evaluate(task, policy, normalizer, key, EVAL_EPISODES))
+    return run(jax.random.PRNGKey(10_000 + seed))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -132,38 +136,23 @@ SETUP_DEFAULTS = {f.name: f.default for f in dataclasses.fields(Protocol) if f.n
 
 def config(algo: str, task: str, budget: str) -> Protocol:
     """The protocol of ``algo`` on ``task`` under ``budget``."""
-    width = WIDTH[task]
-    if budget == "paper":
-        if algo == "ce_apg":
-            return Protocol(task, CEAPGConfig.paper(), width=width)
-        if algo == "papg":
-            return Protocol(task, PAPGConfig(), width=width)
-        if algo == "cem":
-            return Protocol(task, CEMConfig(), width=width)
-        # plain APG with the same interaction count as CE-APG's lineage: 200 x 100 steps of 4 episodes
-        return Protocol(task, APGConfig(iterations=200, steps_per_iteration=100, learning_rate=1e-3), width=width)
-    if budget == "smoke":  # a pipeline check only: a few seconds of training per run
-        small = dict(episodes=1, fitness_window=1)
-        if algo == "ce_apg":
-            cfg = CEAPGConfig(num_candidates=4, num_elites=2, iterations=2, apg_steps=2, **small)
-        elif algo == "papg":
-            cfg = PAPGConfig(num_runs=4, iterations=2, apg_steps=2, **small)
-        elif algo == "cem":
-            cfg = CEMConfig(num_candidates=4, num_elites=2, iterations=2, episodes=1)
-        else:
-            cfg = APGConfig(iterations=2, steps_per_iteration=2, episodes=1)
-        return Protocol(task, cfg, width=width)
-    laptop = dict(episodes=2, lr_start=1e-2, lr_end=1e-4)
-    if algo == "ce_apg":
-        cfg = CEAPGConfig.laptop(task)
-    elif algo == "papg":
-        cfg = PAPGConfig(num_runs=24, iterations=150, apg_steps=25, **laptop)
-    elif algo == "cem":
-        cfg = CEMConfig(num_candidates=24, num_elites=6, iterations=2000, episodes=2)
+    if budget == "paper":  # plain APG: the interaction count of CE-APG's lineage, 200 x 100 steps of 4 episodes
+        configs = {"ce_apg": CEAPGConfig.paper(), "papg": PAPGConfig(), "cem": CEMConfig(),
+                   "apg": APGConfig(iterations=200, steps_per_iteration=100, learning_rate=1e-3)}
+    elif budget == "smoke":  # a pipeline check only: a few seconds of training per run
+        configs = {"ce_apg": CEAPGConfig(num_candidates=4, num_elites=2, iterations=2, apg_steps=2, episodes=1,
+                                         fitness_window=1),
+                   "papg": PAPGConfig(num_runs=4, iterations=2, apg_steps=2, episodes=1, fitness_window=1),
+                   "cem": CEMConfig(num_candidates=4, num_elites=2, iterations=2, episodes=1),
+                   "apg": APGConfig(iterations=2, steps_per_iteration=2, episodes=1)}
     else:
-        cfg = APGConfig(iterations=150, steps_per_iteration=25, episodes=2, learning_rate=3e-3)
+        configs = {"ce_apg": CEAPGConfig.laptop(task),
+                   "papg": PAPGConfig(num_runs=24, iterations=150, apg_steps=25, episodes=2, lr_start=1e-2,
+                                      lr_end=1e-4),
+                   "cem": CEMConfig(num_candidates=24, num_elites=6, iterations=2000, episodes=2),
+                   "apg": APGConfig(iterations=150, steps_per_iteration=25, episodes=2, learning_rate=3e-3)}
     # the laptop protocol observes the acrobot's angles as (sin, cos): the wrapped angles kept every run at ~350
-    return Protocol(task, cfg, width=width, trig_observation=task == "acrobot")
+    return Protocol(task, configs[algo], width=WIDTH[task], trig_observation=budget == "laptop" and task == "acrobot")
 
 
 def parse_value(text: str):
@@ -209,28 +198,25 @@ def with_overrides(protocol: Protocol, overrides: dict) -> Protocol:
 
 
 def one_run(algo, task, seed, budget, protocol: Protocol, out, progress):
-    path = os.path.join(out, f"{algo}_{task}_{seed}.json")
-    if os.path.exists(path):
-        with open(path) as f:
-            res = json.load(f)
+    path = run_file(out, algo, task, seed)
+    if path.exists():
+        res = json.loads(path.read_text())
         check_same_config(path, res.get("config") or {}, protocol)
         return res
     env = protocol.make_task()
-    ckpt = os.path.join(out, f"{algo}_{task}_{seed}.eqx")
+    ckpt = str(path.with_suffix(".eqx"))
     t0 = time.perf_counter()
     try:
         result = train(protocol.config, env, protocol.make_policy(env), jax.random.PRNGKey(seed), checkpoint=ckpt,
                        resume=True, progress=progress, seed=seed)
     except checkpoint.CheckpointError as err:  # e.g. a checkpoint of another protocol, or of an older format
         raise SystemExit(f"cannot resume {ckpt}: {err}. Move it away to retrain the run") from None
-    trainer, history = result.trainer, result.history
-    policy, norm = trainer.policy(result.state)
-    rets, bal = jax.jit(lambda k: evaluate(trainer.task, policy, norm, k, EVAL_EPISODES))(
-        jax.random.PRNGKey(10_000 + seed))
+    trainer, last = result.trainer, result.history[-1]
+    rets, bal = evaluate_final(trainer.task, *trainer.policy(result.state), seed)
     res = {"algo": algo, "task": task, "seed": seed, "budget": budget, "return": float(np.mean(rets)),
-           "balanced": bool(np.all(bal)), "balanced_fraction": float(np.mean(bal)), "env_steps": history[-1]["env_steps"],
-           "best_candidate_fitness": float(history[-1]["best_return"]) if "best_return" in history[-1] else None,
-           "wall_clock_seconds": history[-1]["elapsed"], "this_process_seconds": time.perf_counter() - t0,
+           "balanced": bool(np.all(bal)), "balanced_fraction": float(np.mean(bal)), "env_steps": last["env_steps"],
+           "best_candidate_fitness": float(last["best_return"]) if "best_return" in last else None,
+           "wall_clock_seconds": last["elapsed"], "this_process_seconds": time.perf_counter() - t0,
            "config": protocol.record()}
     write_json(path, res, indent=2)
     return res
@@ -276,21 +262,21 @@ def table(results, budget, variant=""):
             fit_cell = (f"{fit.mean():.0f} +- {fit.std():.0f}" if np.all(np.isfinite(fit)) else
                         "not recorded" if np.all(np.isnan(fit)) else
                         f"{np.nanmean(fit):.0f} +- {np.nanstd(fit):.0f} ({np.sum(np.isfinite(fit))} seeds)")
-            lines.append(
-                f"| {algo} | {task} | {pm:g} +- {ps:g} | {fit_cell} | {ret.mean():.0f} +- {ret.std():.0f} | {len(rs)} | "
-                f"{np.mean([r['balanced'] for r in rs]):.0%} | "
-                f"{np.mean([r.get('balanced_fraction', np.nan) for r in rs]):.0%} | {np.mean([r['env_steps'] for r in rs]):.2e} | "
-                f"{np.mean([r['wall_clock_seconds'] for r in rs]):.0f} |")
+            mean = {k: np.mean([r.get(k, np.nan) for r in rs])
+                    for k in ("balanced", "balanced_fraction", "env_steps", "wall_clock_seconds")}
+            lines.append(f"| {algo} | {task} | {pm:g} +- {ps:g} | {fit_cell} | {ret.mean():.0f} +- {ret.std():.0f} | "
+                         f"{len(rs)} | {mean['balanced']:.0%} | {mean['balanced_fraction']:.0%} | "
+                         f"{mean['env_steps']:.2e} | {mean['wall_clock_seconds']:.0f} |")
     apg_note = f" {PAPER_NOTE['apg']}." if any(r["algo"] == "apg" for r in results) else ""
-    notes = [f"\nBudget: `{budget}`{variant}.{apg_note} Two statistics, mean +- std over seeds: the paper's, the "
-             f"final iteration's best-candidate fitness in training (CE-APG and PAPG: the mean of its last "
-             f"batch returns; CEM: its episodes' mean return; APG: the best batch return; 'not recorded' for runs "
-             f"from before it was kept), and ours, the return of the final "
-             f"deterministic policy, mean over {EVAL_EPISODES} evaluation episodes per seed; 'seeds balanced' = fraction of seeds whose every evaluation "
-             f"episode keeps all links within 0.2 rad of upright over the final 20 %; 'episodes balanced' = the "
-             f"fraction of all evaluation episodes that do. Wall-clock on {os.cpu_count()} "
-             f"CPU core(s), {len(jax.devices())} JAX device(s)."]
-    return "\n".join(lines + notes) + "\n"
+    notes = (f"\nBudget: `{budget}`{variant}.{apg_note} Two statistics, mean +- std over seeds: the paper's, the "
+             "final iteration's best-candidate fitness in training (CE-APG and PAPG: the mean of its last batch "
+             "returns; CEM: its episodes' mean return; APG: the best batch return; 'not recorded' for runs from before "
+             f"it was kept), and ours, the return of the final deterministic policy, mean over {EVAL_EPISODES} "
+             "evaluation episodes per seed; 'seeds balanced' = fraction of seeds whose every evaluation episode keeps "
+             "all links within 0.2 rad of upright over the final 20 %; 'episodes balanced' = the fraction of all "
+             f"evaluation episodes that do. Wall-clock on {os.cpu_count()} CPU core(s), {len(jax.devices())} JAX "
+             "device(s).")
+    return "\n".join([*lines, notes]) + "\n"
 
 
 def main(argv=None):
@@ -326,10 +312,7 @@ def main(argv=None):
         p.error(str(err))
     name = args.budget + (f"_{args.variant}" if args.variant else "")
     out = os.path.join(args.out, name)
-    os.makedirs(out, exist_ok=True)
-    published = os.path.join(args.results, f"paper_tables_{name}_results.json")
-    if not saved_runs(out) and os.path.exists(published):  # runs/ is not in git: a fresh clone starts from the table
-        print(f"restored {restore_runs(published, out)} run results into {out} from {published}")
+    restore_runs(out, pathlib.Path(args.results, f"paper_tables_{name}_results.json"))
     for algo in args.algos:
         for task in args.tasks:
             for seed in args.seeds:
@@ -337,40 +320,15 @@ def main(argv=None):
                 print(f"{algo:7s} {task:16s} seed {seed}: return {r['return']:8.0f} balanced {r['balanced']} "
                       f"{r['env_steps']:.2e} steps {r['wall_clock_seconds']:.0f} s", flush=True)
     # The tables cover every finished run of this budget, selected now or in an earlier invocation.
-    results = saved_runs(out)
+    results = sorted(read_runs(out), key=lambda r: (ALGOS.index(r["algo"]), TASKS.index(r["task"]), r["seed"]))
     variant = (f", variant `{args.variant}`: " + ", ".join(f"`{k}={v!r}`" for k, v in overrides.items())
                if args.variant else "")
     md = table(results, args.budget, variant)
     for folder in (out, args.results):
-        os.makedirs(folder, exist_ok=True)
         stem = "" if folder == out else f"paper_tables_{name}_"
         write_json(os.path.join(folder, f"{stem}results.json"), results, indent=2)
         write_text(os.path.join(folder, f"{stem}tables.md"), md)
     print(md)
-
-
-def restore_runs(results_json, out) -> int:
-    """Write each run of a published ``results.json`` back as ``out/<algo>_<task>_<seed>.json``, so that the
-    tables keep them and those runs are not redone."""
-    with open(results_json) as f:
-        runs = json.load(f)
-    for r in runs:
-        write_json(os.path.join(out, f"{r['algo']}_{r['task']}_{r['seed']}.json"), r, indent=2)
-    return len(runs)
-
-
-def saved_runs(out):
-    """Every per-run result file (``<algo>_<task>_<seed>.json``) in ``out``, in algorithm, task, seed order."""
-    runs = []
-    for name in os.listdir(out):
-        stem, ext = os.path.splitext(name)
-        parts = stem.rsplit("_", 1)
-        if ext != ".json" or len(parts) != 2 or not parts[1].isdigit():
-            continue
-        with open(os.path.join(out, name)) as f:
-            runs.append(json.load(f))
-    order = {a: i for i, a in enumerate(ALGOS)}
-    return sorted(runs, key=lambda r: (order.get(r["algo"], 99), TASKS.index(r["task"]), r["seed"]))
 
 
 if __name__ == "__main__":
