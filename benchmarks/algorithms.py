@@ -133,7 +133,6 @@ def _evaluate(task, policy, normalizer, seed):
     return np.asarray(rets, float), np.asarray(bal, bool)
 
 
-# ---------------------------------------------------------------------------------------------
 # one run per algorithm: returns (final returns, balanced flags, curve, env_steps, wall_clock)
 
 

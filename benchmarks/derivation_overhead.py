@@ -1,26 +1,24 @@
 """What the autodiff derivation costs: lagrange against hand-written closed-form equations.
 
-Acrobot, cartpole and double cartpole; classic RK4, 500 control steps of 0.01 s (one RK4 step
-each), float32, controls (500, 1) from a fixed seed. For each system, batch (1 and 1024, via
-``vmap``) and mode (forward: the whole trajectory; gradient: of a loss on the final state with
-respect to all controls), it times, interleaved in one run:
-
-- ``lagrange``: ``lagrange.simulate(chain, ..., solver=RK4())`` with its defaults
-  (non-finite check on, per-interval ``jax.checkpoint`` on),
-- ``closed form``: ``oracles/closed_form.py``, hand-written equations and RK4 in ``lax.scan``,
-- ``closed form + remat``: the same with ``jax.checkpoint`` around each interval, as a careful
-  person would add once they measured it,
-- ``naive autodiff``: Hessians of the Lagrangian and ``jnp.linalg.solve``
-  (``oracles/euler_lagrange.py``) in the same RK4 loop, the derivation this library replaces.
-
-Reported: median wall time over interleaved repeats, compile time, and the ratios
-``lagrange / closed form`` and ``lagrange / (closed form + remat)``. Shared, noisy machines make
-absolute times drift; the ratios from one run are what to compare.
-
     python -m benchmarks.derivation_overhead            # the table (also: python benchmarks/derivation_overhead.py)
     python -m benchmarks.derivation_overhead --quick    # acrobot only, 3 repeats
 
-Writes ``benchmarks/results/derivation_overhead.{json,md}`` (``--quick``: ``runs/benchmarks/``, not published).
+Acrobot, cartpole and double cartpole; classic RK4, 500 control steps of 0.01 s (one RK4 step each), float32,
+controls (500, 1) from a fixed seed. For each system, batch (1 and 1024, via ``vmap``) and mode (forward: the whole
+trajectory; gradient: of a loss on the final state with respect to all controls), it times, interleaved in one run:
+
+- ``lagrange``: ``lagrange.simulate(chain, ..., solver=RK4())`` with its defaults (non-finite check on,
+  per-interval ``jax.checkpoint`` on),
+- ``closed form``: ``oracles/closed_form.py``, hand-written equations and RK4 in ``lax.scan``,
+- ``closed form + remat``: the same with ``jax.checkpoint`` around each interval, as a careful person would add once
+  they measured it,
+- ``naive autodiff``: Hessians of the Lagrangian and ``jnp.linalg.solve`` (``oracles/euler_lagrange.py``) in the
+  same RK4 loop, the derivation this library replaces.
+
+Reported: median wall time over interleaved repeats, compile time, and the ratios ``lagrange / closed form`` and
+``lagrange / (closed form + remat)``; on a shared machine absolute times drift, the ratios of one run are what to
+compare. Writes ``benchmarks/results/derivation_overhead.{json,md}`` (``--quick``: ``runs/benchmarks/``, not
+published).
 """
 
 from __future__ import annotations
@@ -73,12 +71,8 @@ def _variants(chain, closed):
     def naive_roll(q0, qd0, us):
         return cf.rollout(lambda p, q, qd, u: el.forward_dynamics(chain, q, qd, u), None, q0, qd0, us, DT)
 
-    return {
-        "lagrange": lagrange_roll,
-        "closed form": cf_roll,
-        "closed form + remat": cf_remat_roll,
-        "naive autodiff": naive_roll,
-    }
+    return {"lagrange": lagrange_roll, "closed form": cf_roll, "closed form + remat": cf_remat_roll,
+            "naive autodiff": naive_roll}
 
 
 def _build(roll, mode):
@@ -128,8 +122,8 @@ def run(repeats: int, batches, systems):
                     times[v] = []
                 # calls per measurement: enough for ~20 ms, so microsecond runs are not timer noise
                 calls = {v: max(1, int(0.02 / max(_time(fns[v], (q0, qd0, us)), 1e-6))) for v in fns}
-                reference = np.asarray(fns["closed form"](q0, qd0, us)[0] if mode == "forward" else fns["closed form"](q0, qd0, us))
-                mine = np.asarray(fns["lagrange"](q0, qd0, us)[0] if mode == "forward" else fns["lagrange"](q0, qd0, us))
+                reference, mine = (fns[v](q0, qd0, us) for v in ("closed form", "lagrange"))
+                reference, mine = (np.asarray(x[0] if mode == "forward" else x) for x in (reference, mine))
                 agree = float(np.max(np.abs(mine - reference)) / max(1.0, float(np.max(np.abs(reference)))))
                 for _ in range(repeats):
                     for v in variants:
@@ -137,43 +131,26 @@ def run(repeats: int, batches, systems):
                             continue
                         times[v].append(_time(fns[v], (q0, qd0, us), calls[v]))
                 med = {v: float(np.median(t)) for v, t in times.items()}
-                row = {
-                    "system": name,
-                    "batch": batch,
-                    "mode": mode,
-                    "ms": {v: 1e3 * t for v, t in med.items()},
-                    "compile_s": compile_s,
-                    "ratio_vs_closed_form": med["lagrange"] / med["closed form"],
-                    "ratio_vs_closed_form_remat": med["lagrange"] / med["closed form + remat"],
-                    "naive_vs_closed_form": med["naive autodiff"] / med["closed form"],
-                    "max_rel_diff_vs_closed_form": agree,
-                }
+                row = {"system": name, "batch": batch, "mode": mode, "ms": {v: 1e3 * t for v, t in med.items()},
+                       "compile_s": compile_s, "ratio_vs_closed_form": med["lagrange"] / med["closed form"],
+                       "ratio_vs_closed_form_remat": med["lagrange"] / med["closed form + remat"],
+                       "naive_vs_closed_form": med["naive autodiff"] / med["closed form"],
+                       "max_rel_diff_vs_closed_form": agree}
                 rows.append(row)
-                print(
-                    f"{name:16s} B={batch:<5d} {mode:8s} lagrange {row['ms']['lagrange']:9.3f} ms | "
-                    f"closed {row['ms']['closed form']:9.3f} | closed+remat {row['ms']['closed form + remat']:9.3f} | "
-                    f"naive {row['ms']['naive autodiff']:9.3f} || ratio {row['ratio_vs_closed_form']:.2f} "
-                    f"(vs remat {row['ratio_vs_closed_form_remat']:.2f}, naive {row['naive_vs_closed_form']:.1f}) "
-                    f"compile {compile_s['lagrange']:.2f}s vs {compile_s['closed form']:.2f}s",
-                    flush=True,
-                )
+                print(markdown([row]).splitlines()[-1], flush=True)
     return rows
 
 
 def markdown(rows) -> str:
-    out = [
-        "| system | batch | mode | lagrange ms | closed form ms | closed form + remat ms | naive autodiff ms "
-        "| lagrange / closed | lagrange / (closed + remat) | naive / closed | compile lagrange / closed s |",
-        "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|",
-    ]
+    out = ["| system | batch | mode | lagrange ms | closed form ms | closed form + remat ms | naive autodiff ms "
+           "| lagrange / closed | lagrange / (closed + remat) | naive / closed | compile lagrange / closed s |",
+           "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         ms, c = r["ms"], r["compile_s"]
-        out.append(
-            f"| {r['system']} | {r['batch']} | {r['mode']} | {ms['lagrange']:.3f} | {ms['closed form']:.3f} | "
-            f"{ms['closed form + remat']:.3f} | {ms['naive autodiff']:.3f} | **{r['ratio_vs_closed_form']:.2f}** | "
-            f"{r['ratio_vs_closed_form_remat']:.2f} | {r['naive_vs_closed_form']:.1f} | "
-            f"{c['lagrange']:.2f} / {c['closed form']:.2f} |"
-        )
+        out.append(f"| {r['system']} | {r['batch']} | {r['mode']} | {ms['lagrange']:.3f} | {ms['closed form']:.3f} | "
+                   f"{ms['closed form + remat']:.3f} | {ms['naive autodiff']:.3f} | "
+                   f"**{r['ratio_vs_closed_form']:.2f}** | {r['ratio_vs_closed_form_remat']:.2f} | "
+                   f"{r['naive_vs_closed_form']:.1f} | {c['lagrange']:.2f} / {c['closed form']:.2f} |")
     return "\n".join(out)
 
 
@@ -181,16 +158,13 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeats", type=int, default=15)
     ap.add_argument("--quick", action="store_true", help="acrobot only, 3 repeats")
-    ap.add_argument("--out", default=None, help="folder of the result files (default benchmarks/results, "
-                                                "runs/benchmarks with --quick)")
     args = ap.parse_args()
-    out = args.out or outputs(args.quick)[0]
+    out = outputs(args.quick)[0]
     systems = ["acrobot"] if args.quick else list(SYSTEMS)
     repeats = 3 if args.quick else args.repeats
     rows = run(repeats, (1, 1024), systems)
     table = markdown(rows)
-    print()
-    print(table)
+    print(f"\n{table}")
     write_json(os.path.join(out, "derivation_overhead.json"),
                {"rows": rows, "jax": jax.__version__, "backend": jax.default_backend(), "cpus": os.cpu_count()})
     write_text(os.path.join(out, "derivation_overhead.md"), table + "\n")

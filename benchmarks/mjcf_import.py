@@ -5,13 +5,12 @@
 For each model: the mass matrix (``mj_fullM``), the bias forces (``qfrc_bias - qfrc_passive``) and ``qacc`` at 32
 random in-range states, and the worst of 8 rollouts of 100 steps with the model's own integrator
 (``solver_of``) against ``mj_step`` under small random controls (a rollout on which MuJoCo meets a constraint is drawn
-again, since the chain has no joint limits); errors relative, ``max|a - b| / max(1, max|b|)``, float64. Gymnasium's
-reacher is listed with the reason it is refused. Writes ``benchmarks/results/mjcf_import.{json,md}``.
+again, since the chain has no joint limits); errors relative, ``max|a - b| / max(1, max|b|)``, float64. A model that
+``from_mjcf`` refuses is listed as refused. Writes ``benchmarks/results/mjcf_import.{json,md}``.
 """
 
 from __future__ import annotations
 
-import json
 import pathlib
 
 import jax
@@ -23,11 +22,9 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 import lagrange as lg  # noqa: E402
-from benchmarks._cli import asset  # noqa: E402
+from benchmarks._cli import RESULTS, asset  # noqa: E402
 from lagrange.interop.mjcf import from_mjcf, mujoco_rollout, solver_of  # noqa: E402
-
-RESULTS = pathlib.Path(__file__).parent / "results"
-
+from optim.checkpoint import write_json, write_text  # noqa: E402
 
 MODELS = {
     "dm_control acrobot": ("dm_control", "suite", "acrobot.xml"),
@@ -94,17 +91,16 @@ def main():
         except NotImplementedError as err:
             rows[name] = {"refused": str(err)}
         print(name, rows[name])
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "mjcf_import.json").write_text(json.dumps(rows, indent=2))
+    write_json(RESULTS / "mjcf_import.json", rows, indent=2)
     lines = ["| model | joints | integrator | M | bias | qacc | 100-step rollout |", "|---|---|---|---:|---:|---:|---:|"]
     for name, r in rows.items():
         if "refused" in r:
             lines.append(f"| {name} | refused: its target is a second chain hanging from the world | | | | | |")
             continue
         joints = ", ".join("slide" if j == "prismatic" else "hinge" for j in r["joints"])
-        lines.append(f"| {name} | {joints} | {r['integrator']} ({r['timestep']} s) | {r['M']:.0e} | {r['bias']:.0e} "
-                     f"| {r['qacc']:.0e} | {r['rollout']:.0e} |")
-    (RESULTS / "mjcf_import.md").write_text("\n".join(lines) + "\n")
+        lines.append(f"| {name} | {joints} | {r['integrator']} ({r['timestep']} s) | {r['M']:.0e} | "
+                     f"{r['bias']:.0e} | {r['qacc']:.0e} | {r['rollout']:.0e} |")
+    write_text(RESULTS / "mjcf_import.md", "\n".join(lines) + "\n")
     print("\n".join(lines))
 
 

@@ -1,4 +1,4 @@
-"""Numerical stability sweeps: energy drift, random stress states, float32 vs float64, gradients.
+"""Numerical stability sweeps: energy drift, random stress states, float32 vs float64, gradients, contact.
 
     python -m benchmarks.stability                    # the full sweep (about 5 minutes on 2 cores)
     python -m benchmarks.stability --quick            # reduced sweep (~1-2 minutes), written under runs/benchmarks/
@@ -6,17 +6,16 @@
     python -m benchmarks.stability --contact-only     # part 5 alone (about 1.5 minutes)
 
 1. Energy drift of the conservative acrobot and double pendulum over 1e5 steps for each solver.
-2. 10,000 random initial states (speeds up to 50 rad/s, mass ratios up to 1e3 within a chain,
-   chains of 2 to 20 links), RK4 at dt = 1e-3 for 0.5 s: non-finite trajectories counted,
-   whether ``simulate(check=True)`` would report each (its final state is non-finite), the
-   energy error before the blow-up, and how many survive with 8 substeps.
+2. 10,000 random initial states (speeds up to 50 rad/s, mass ratios up to 1e3 within a chain, chains of 2 to 20
+   links), RK4 at dt = 1e-3 for 0.5 s: non-finite trajectories counted, whether ``simulate(check=True)`` would report
+   each (its final state is non-finite), the energy error before the blow-up, and how many survive with 8 substeps.
 2b. The error-controlled mode on the first states of the same batch, chains of 3 or more links: ``simulate``'s
    adaptive Tsit5 (rtol = atol = 1e-8, ``max_steps`` = 4096 per 1 ms interval), 0.5 s: how many finish, how many are
    stopped by ``max_steps``, their energy error, steps and wall time, beside RK4 at 1 ms on the same states.
-3. float32 against float64: the time at which trajectories part (by 0.1 rad) per system, beside
-   two float64 runs whose initial angles differ by 1e-7 rad.
-4. The gradient norm of a final-state loss with respect to the controls against the horizon
-   for the acrobot, float32 and float64 (plot).
+3. float32 against float64: the time at which trajectories part (by 0.1 rad) per system, beside two float64 runs
+   whose initial angles differ by 1e-7 rad.
+4. The gradient norm of a final-state loss with respect to the controls against the horizon for the acrobot,
+   float32 and float64 (plot).
 5. Gymnasium's hopper and half-cheetah dropped on the ground (penalty contact and limits): the largest stable
    fixed step of semi-implicit Euler against the contact stiffness, the energy at two steps, Tsit5 with error
    control through the impacts (:func:`contact_drops`; plot of the hopper's drop).
@@ -56,22 +55,15 @@ def _rollout(chain, q0, qd0, dt, solver, steps, substeps=1):
                        steps=steps if chain.m == 0 else None, check=False)
 
 
-# ------------------------------------------------------------------------------ energy drift
-
-
 def energy_drift(steps: int):
     systems = {"acrobot": lg.systems.acrobot(), "double_pendulum": lg.systems.n_link_pendulum(2)}
-    configs = [
-        ("Euler", lg.Euler(), 1e-3), ("SemiImplicitEuler", lg.SemiImplicitEuler(), 1e-3),
-        ("SemiImplicitEuler", lg.SemiImplicitEuler(), 1e-4),
-        ("SymplecticEuler", lg.SymplecticEuler(), 1e-3), ("SymplecticEuler", lg.SymplecticEuler(), 5e-4),
-        ("RK4", lg.RK4(), 1e-3), ("RK4", lg.RK4(), 5e-4), ("Tsit5", lg.Tsit5(), 1e-3),
-        ("Dopri5", lg.Dopri5(), 1e-3), ("Dopri8", lg.Dopri8(), 1e-3), ("Dopri8", lg.Dopri8(), 1e-2),
-    ]
+    configs = [(lg.Euler(), 1e-3), (lg.SemiImplicitEuler(), 1e-3), (lg.SemiImplicitEuler(), 1e-4),
+               (lg.SymplecticEuler(), 1e-3), (lg.SymplecticEuler(), 5e-4), (lg.RK4(), 1e-3), (lg.RK4(), 5e-4),
+               (lg.Tsit5(), 1e-3), (lg.Dopri5(), 1e-3), (lg.Dopri8(), 1e-3), (lg.Dopri8(), 1e-2)]
     q0, qd0 = jnp.array([2.0, 1.0]), jnp.zeros(2)
     rows = []
     for sname, chain in systems.items():
-        for name, solver, dt in configs:
+        for solver, dt in configs:
             @jax.jit
             def run(q0, qd0):
                 tr = _rollout(chain, q0, qd0, dt, solver, steps)
@@ -84,13 +76,10 @@ def energy_drift(steps: int):
             err = np.abs(np.asarray(run(q0, qd0)))
             wall = time.perf_counter() - t
             h = steps // 2
-            rows.append(dict(system=sname, solver=name, dt=dt, steps=steps, horizon_s=steps * dt,
+            rows.append(dict(system=sname, solver=type(solver).__name__, dt=dt, steps=steps, horizon_s=steps * dt,
                              max=float(err.max()), first_half=float(err[: h + 1].max()),
                              second_half=float(err[h:].max()), final=float(err[-1]), wall_s=wall))
     return rows
-
-
-# ------------------------------------------------------------------------------ stress batch
 
 
 def _batch(n, size, rng):
@@ -133,50 +122,42 @@ def _stress_fn(n, dt, steps, substeps):
     return jax.jit(jax.vmap(one))
 
 
-def stress(total: int, sizes, dt=1e-3, steps=500, seed=0, rerun_max=200):
-    rng = np.random.default_rng(seed)
-    per = total // len(sizes)
-    rows = []
-    for n in sizes:
-        mass, length, q, qd = _batch(n, per, rng)
-        t = time.perf_counter()
-        ok, final_ok, rel, fd_ok, wh = (np.asarray(x) for x in _stress_fn(n, dt, steps, 1)(mass, length, q, qd))
-        wall = time.perf_counter() - t
-        bad = np.flatnonzero(~ok)
-        good = ok & (rel <= 1e-2)
-        row = dict(n=n, states=per, nonfinite=int(bad.size),
-                   unreported=int(np.sum(~ok & final_ok)),  # non-finite somewhere, finite at the end
-                   fd_nonfinite_at_start=int(np.sum(~fd_ok)),
-                   min_energy_error_before_blowup=float(rel[bad].min()) if bad.size else None,
-                   finite_energy_error_gt_1e_2=int(np.sum(ok & (rel > 1e-2))),
-                   accurate=int(good.sum()),
-                   median_peak_speed_x_h_accurate=float(np.median(wh[good])) if good.any() else None,
-                   median_peak_speed_x_h_inaccurate=float(np.median(wh[ok & ~good])) if (ok & ~good).any() else None,
-                   wall_s=wall)
-        if bad.size:
-            sub, bad = 8, bad[:rerun_max]  # re-run (at most rerun_max of) the failures with dt / 8
-            ok8, _, rel8, _, _ = (np.asarray(x) for x in _stress_fn(n, dt, steps, sub)(
-                mass[bad], length[bad], q[bad], qd[bad]))
-            row["rerun_with_8_substeps"] = int(bad.size)
-            row["nonfinite_with_8_substeps"] = int((~ok8).sum())
-            row["of_those_energy_error_le_1e_2"] = int(np.sum(ok8 & (rel8 <= 1e-2)))
-        rows.append(row)
-        print(f"  stress n={n:2d}: {row}", flush=True)
-    return rows
-
-
-# ------------------------------------------------------------------------------ error-controlled stress
+def stress(n: int, states: int, dt=1e-3, steps=500, rerun_max=200):
+    """The fixed-step sweep's row for ``states`` random n-link chains and states (seed ``n``)."""
+    mass, length, q, qd = _batch(n, states, np.random.default_rng(n))
+    t = time.perf_counter()
+    ok, final_ok, rel, fd_ok, wh = (np.asarray(x) for x in _stress_fn(n, dt, steps, 1)(mass, length, q, qd))
+    wall = time.perf_counter() - t
+    bad = np.flatnonzero(~ok)
+    good = ok & (rel <= 1e-2)
+    row = dict(n=n, states=states, nonfinite=int(bad.size),
+               unreported=int(np.sum(~ok & final_ok)),  # non-finite somewhere, finite at the end
+               fd_nonfinite_at_start=int(np.sum(~fd_ok)),
+               min_energy_error_before_blowup=float(rel[bad].min()) if bad.size else None,
+               finite_energy_error_gt_1e_2=int(np.sum(ok & (rel > 1e-2))),
+               accurate=int(good.sum()),
+               median_peak_speed_x_h_accurate=float(np.median(wh[good])) if good.any() else None,
+               median_peak_speed_x_h_inaccurate=float(np.median(wh[ok & ~good])) if (ok & ~good).any() else None,
+               wall_s=wall)
+    if bad.size:
+        sub, bad = 8, bad[:rerun_max]  # re-run (at most rerun_max of) the failures with dt / 8
+        ok8, _, rel8, _, _ = (np.asarray(x) for x in _stress_fn(n, dt, steps, sub)(
+            mass[bad], length[bad], q[bad], qd[bad]))
+        row["rerun_with_8_substeps"] = int(bad.size)
+        row["nonfinite_with_8_substeps"] = int((~ok8).sum())
+        row["of_those_energy_error_le_1e_2"] = int(np.sum(ok8 & (rel8 <= 1e-2)))
+    print(f"  stress n={n:2d}: {row}", flush=True)
+    return row
 
 
 def _adaptive_rollout(chain, q0, qd0, dt, steps, rtol, atol, max_steps):
     """``lg.simulate(chain, q0, qd0, None, dt, lg.Tsit5(), steps=steps, rtol=rtol, atol=atol, max_steps=max_steps)``
-    run interval by interval through the same ``diffrax.diffeqsolve`` (Tsit5, a PIDController started at dt in
-    every control interval), but with ``throw=False``: an interval that fails (reaches ``max_steps``) ends the
-    rollout there, holding its state, instead of raising, and diffrax's step counts are kept.
+    through the same ``diffrax.diffeqsolve`` per interval, but with ``throw=False``: an interval that fails (reaches
+    ``max_steps``) holds the state to the end instead of raising, and diffrax's step counts are kept.
 
     Returns ``(q, qd, accepted, rejected, busiest, max_steps_hit, failed)``: the states at the interval ends,
-    shape ``(steps + 1, n)``; the accepted and rejected steps summed over the intervals; the most steps one interval
-    took; whether an interval reached ``max_steps``; whether an interval's result was not successful at all."""
+    ``(steps + 1, n)``; the accepted and rejected steps in all; the most steps one interval took; whether an interval
+    reached ``max_steps``; whether one was not successful at all."""
     u = jnp.zeros((chain.m,), q0.dtype)
     term = diffrax.ODETerm(lambda t, y, u: (y[1], lg.forward_dynamics(chain, y[0], y[1], u, check=False)))
     controller = diffrax.PIDController(rtol=rtol, atol=atol)
@@ -203,10 +184,9 @@ def _adaptive_rollout(chain, q0, qd0, dt, steps, rtol, atol, max_steps):
 
 
 def _adaptive_fn(n, dt, steps, rtol, atol, max_steps):
-    """Jitted: for each state ``(mass, length, q, qd)`` of a batch of n-link stress chains, one after the other
-    (``lax.map``: under ``vmap`` every interval would run until its slowest state is done), its
-    :func:`_adaptive_rollout`'s ``(finite, max_steps_hit, failed, largest energy error, accepted, rejected,
-    busiest)``; ``finite``: the final state is finite."""
+    """Jitted: for each n-link stress state ``(mass, length, q, qd)``, one after the other (under ``vmap`` every
+    interval would wait for its slowest state), ``(final state finite, max_steps_hit, failed, largest energy error,
+    accepted, rejected, busiest)`` of its :func:`_adaptive_rollout`."""
     base = lg.systems.n_link_pendulum(n)
 
     def one(x):
@@ -226,15 +206,11 @@ def _median_max(x, kind=float):
 
 
 def adaptive_stress(states, per, dt=1e-3, steps=500, rtol=1e-8, atol=1e-8, max_steps=4096):
-    """The error-controlled mode on the stress batch: for each chain size ``n`` of ``states``, the first ``states[n]``
-    of the ``per`` states that :func:`stress` draws for it (seed ``n``), run by :func:`_adaptive_rollout` and by RK4
-    at ``dt`` (the fixed-step sweep's outcome for the same states).
-
-    Per size: how many finish (no interval failed, final state finite), how many an interval's ``max_steps`` stopped,
-    how many ended non-finite without being stopped; the finished ones' largest energy error (median and worst, as in
-    :func:`stress`) and solver steps (accepted + rejected, median and worst; RK4 takes ``steps``); the most steps any
-    interval took (against ``max_steps``); the wall time per trajectory, run one after the other on the CPU, compile
-    excluded; and how many of the same states RK4 turns non-finite, and of those how many finish here."""
+    """The error-controlled mode on the first ``states[n]`` of the ``per`` states :func:`stress` draws for each chain
+    size ``n``, beside RK4 at ``dt`` on the same states. Per size: how many finish (no interval failed, final state
+    finite), stop at ``max_steps`` or end non-finite; the finished ones' largest energy error and solver steps
+    (accepted + rejected), median and worst; the busiest interval's steps; the wall time per trajectory (compile
+    excluded); how many states RK4 turns non-finite, and how many of those finish here."""
     rows = []
     for n, k in states.items():
         mass, length, q, qd = (x[:k] for x in _batch(n, per, np.random.default_rng(n)))
@@ -261,9 +237,6 @@ def adaptive_stress(states, per, dt=1e-3, steps=500, rtol=1e-8, atol=1e-8, max_s
         print(f"  adaptive stress n={n:2d}: {row}", flush=True)
     return dict(solver="Tsit5", rtol=rtol, atol=atol, max_steps_per_interval=max_steps, dt=dt, steps=steps,
                 horizon_s=steps * dt, states_drawn_per_size=per, rows=rows)
-
-
-# ------------------------------------------------------------------------------ float32 vs float64
 
 
 def _to_f32(chain):
@@ -299,9 +272,6 @@ def parting(dt=1e-3, steps=30_000, tol=0.1):
                          perturbed_1e_7_parting_s=tp, perturbed_final_gap=gp))
         print(f"  parting {name}: float32 {t32} s, 1e-7 perturbation {tp} s", flush=True)
     return rows
-
-
-# ------------------------------------------------------------------------------ gradient growth
 
 
 def gradient_growth(horizons, dt=0.01):
@@ -346,8 +316,7 @@ def plot_gradients(rows, path):
     save_figure(fig, path, dpi=90)
 
 
-# ------------------------------------------------------------------------------ contact: dropped on the ground
-
+# part 5: the hopper and the half-cheetah dropped on the ground
 DROP_MU = {"hopper": 0.9, "half_cheetah": 1.0}  # Gymnasium's models and the friction coefficient of each
 DROP_KE = (2e3, 2e4, 2e5)
 DROP_STEPS = tuple(0.1 * 2 ** (-k / 2) for k in range(17))  # the fixed steps tried, 0.1 s to 2.5e-4 s, largest first
@@ -467,13 +436,10 @@ def _fixed_step_sweeps(out, quick, path, plot_path):
     steps = 20_000 if quick else 100_000
     print(f"energy drift over {steps} steps", flush=True)
     out["energy_drift"] = energy_drift(steps)
-    print(markdown_table(out["energy_drift"],
-                         ["system", "solver", "dt", "horizon_s", "first_half", "second_half", "max"]))
+    print(markdown_table(out["energy_drift"], ["system", "solver", "dt", "first_half", "second_half", "max"]))
 
     print("float32 vs float64 parting times", flush=True)
     out["parting"] = parting(steps=10_000 if quick else 30_000)
-    print(markdown_table(out["parting"],
-                         ["system", "float32_parting_s", "perturbed_1e_7_parting_s", "float32_final_gap"]))
 
     horizons = [10, 30, 100, 300, 1000] if quick else [10, 20, 50, 100, 200, 500, 1000, 2000, 5000]
     print("gradient norm vs horizon (acrobot)", flush=True)
@@ -487,11 +453,8 @@ def _fixed_step_sweeps(out, quick, path, plot_path):
     print(f"stress: {total} random states, n in {sizes}", flush=True)
     out["stress"] = []
     for n in sizes:
-        out["stress"] += stress(total // len(sizes), (n,), seed=n)
+        out["stress"].append(stress(n, total // len(sizes)))
         write_json(path, out)
-    print(markdown_table(out["stress"], ["n", "states", "nonfinite", "unreported", "fd_nonfinite_at_start",
-                                         "min_energy_error_before_blowup", "finite_energy_error_gt_1e_2",
-                                         "rerun_with_8_substeps", "nonfinite_with_8_substeps"]))
 
 
 def main(argv=None):
@@ -514,14 +477,15 @@ def main(argv=None):
     if not args.adaptive_only:
         print("contact: the hopper and the half-cheetah dropped on the ground", flush=True)
         out["contact"] = drops = contact_drops(args.quick)
-        plot_drop([r for r in drops["energy"] if r["model"] == "hopper" and r["damped"]], img / f"hopper_drop{suffix}.png")
+        drop_plot = img / f"hopper_drop{suffix}.png"
+        plot_drop([r for r in drops["energy"] if r["model"] == "hopper" and r["damped"]], drop_plot)
         for r in drops["energy"]:
             r.pop("trace")
         for key in ("stable", "energy", "adaptive"):
             print(markdown_table(drops[key], list(drops[key][0])))
         write_json(path, out)
         if args.contact_only:
-            return print(f"wrote {path} and {img / f'hopper_drop{suffix}.png'} ({time.perf_counter() - t0:.0f} s)")
+            return print(f"wrote {path} and {drop_plot} ({time.perf_counter() - t0:.0f} s)")
 
     sizes, total = STRESS[args.quick]
     states = ADAPTIVE_STATES[args.quick]
@@ -530,10 +494,6 @@ def main(argv=None):
     t = time.perf_counter()
     out["adaptive_stress"] = adaptive_stress(states, total // len(sizes))
     out["adaptive_stress"]["wall_s"] = time.perf_counter() - t
-    print(markdown_table(out["adaptive_stress"]["rows"], [
-        "n", "states", "finished", "stopped_by_max_steps", "nonfinite", "energy_error_median", "energy_error_max",
-        "steps_median", "steps_max", "busiest_interval_steps", "wall_s_per_trajectory", "rk4_nonfinite",
-        "rk4_nonfinite_finished"]))
     if not args.adaptive_only:
         out["total_wall_s"] = time.perf_counter() - t0
     write_json(path, out)

@@ -22,6 +22,7 @@ Writes ``benchmarks/results/throughput.json`` (acrobot), ``throughput_scaling.js
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import os
 import time
 
@@ -40,31 +41,25 @@ from benchmarks._timing import block, median_time  # noqa: E402
 from lagrange.interop.mjcf import from_mjcf, to_mjcf  # noqa: E402
 from optim.checkpoint import write_json  # noqa: E402
 from oracles import closed_form as cf  # noqa: E402
+from oracles.pinocchio import pinocchio_model  # noqa: E402
 
 DT = 0.01
 STEPS = 100
 ALTERNATING_ROUNDS = 4
 JAX_ENGINES_MAX_N = 4  # MJX and Brax in the scaling sweep: MJX at n = 8 did not finish its first forward call in 150 s
-
-
-def _loss(q, qd):
-    return jnp.sum(q**2) + jnp.sum(qd**2)
-
-
-# ------------------------------------------------------------------------------ JAX engines
-# Each factory returns fwd(q0 (B,n), qd0 (B,n), us (B,T,m)) -> (q, qd) and grad(...) -> d/d us.
+PINOCCHIO = importlib.util.find_spec("pinocchio") is not None  # the bench extra; without it, no Pinocchio columns
 
 
 def _jax_pair(rollout, argnums=2):
-    """rollout(q0, qd0, us) for one env -> (qT, qdT); returns jitted batched forward and gradient (with respect to
-    the controls, or the arguments ``argnums``)."""
-    fwd = jax.jit(jax.vmap(rollout))
+    """From one environment's ``rollout(q0, qd0, us) -> (q_T, qd_T)``, the jitted batched forward ``fwd(q0 (B, n),
+    qd0 (B, n), us (B, T, m)) -> (q_T, qd_T)`` and gradient of ``sum(q_T^2 + qd_T^2)`` with respect to the controls
+    (or the arguments ``argnums``)."""
 
     def loss(q0, qd0, us):
-        return _loss(*rollout(q0, qd0, us))
+        q, qd = rollout(q0, qd0, us)
+        return jnp.sum(q**2) + jnp.sum(qd**2)
 
-    grad = jax.jit(jax.vmap(jax.grad(loss, argnums=argnums)))
-    return fwd, grad
+    return jax.jit(jax.vmap(rollout)), jax.jit(jax.vmap(jax.grad(loss, argnums=argnums)))
 
 
 def lagrange_engine(chain, solver, dt=DT, argnums=2):
@@ -83,17 +78,6 @@ def closed_form_engine():
         return q[-1], qd[-1]
 
     return _jax_pair(rollout)
-
-
-def brax_engine(chain):
-    return _jax_pair(brax_rollout(chain, DT))
-
-
-def mjx_engine(chain, integrator="Euler", argnums=2):
-    return _jax_pair(mjx_rollout(chain, DT, integrator), argnums)
-
-
-# ------------------------------------------------------------------------------ MuJoCo C, Pinocchio
 
 
 class MujocoC:
@@ -141,25 +125,6 @@ def mujoco_fd_time(mj, n, repeats=5, best=True):
     return median_time(fd, repeats=repeats, min_time=0.0, best=best) / calls
 
 
-def pinocchio_chain(chain):
-    """A Pinocchio model of the same planar chain (revolute joints about y), or None."""
-    try:
-        import pinocchio as pin
-    except ImportError:
-        return None
-    model = pin.Model()
-    parent = 0
-    mass, length, com, inertia = (np.asarray(x, float) for x in (chain.mass, chain.length, chain.com, chain.inertia))
-    for i in range(chain.n):
-        placement = pin.SE3(np.eye(3), np.array([0.0, 0.0, -length[i - 1] if i else 0.0]))
-        parent = model.addJoint(parent, pin.JointModelRY(), placement, f"q{i}")
-        I = max(inertia[i], 1e-12)
-        model.appendBodyToJoint(parent, pin.Inertia(mass[i], np.array([0.0, 0.0, -com[i]]), np.diag([I, I, I])),
-                                pin.SE3.Identity())
-    model.gravity.linear = np.array([0.0, 0.0, -float(chain.gravity)])
-    return model
-
-
 def pinocchio_times(model, n, repeats=3, calls=2000, best=False):
     import pinocchio as pin
 
@@ -177,9 +142,6 @@ def pinocchio_times(model, n, repeats=3, calls=2000, best=False):
 
     return (median_time(aba, repeats=repeats, min_time=0.0, best=best) / calls,
             median_time(aba_d, repeats=repeats, min_time=0.0, best=best) / (calls // 4))
-
-
-# ------------------------------------------------------------------------------ measurement
 
 
 def _inputs(n, m, B, T=STEPS, seed=0):
@@ -234,8 +196,8 @@ def acrobot_main(batches, quick, path):
     chain = lg.systems.acrobot()
     engines = {
         ("SemiImplicitEuler", "lagrange"): lambda: lagrange_engine(chain, lg.SemiImplicitEuler()),
-        ("SemiImplicitEuler", "brax"): lambda: brax_engine(chain),
-        ("SemiImplicitEuler", "mjx"): lambda: mjx_engine(chain, "Euler"),
+        ("SemiImplicitEuler", "brax"): lambda: _jax_pair(brax_rollout(chain, DT)),
+        ("SemiImplicitEuler", "mjx"): lambda: _jax_pair(mjx_rollout(chain, DT)),
         ("RK4", "lagrange"): lambda: lagrange_engine(chain, lg.RK4()),
         ("RK4", "closed_form"): closed_form_engine,
     }
@@ -262,9 +224,8 @@ def acrobot_main(batches, quick, path):
             out["rows"].append(dict(integrator=integ, engine="mujoco_c_2threads", batch=B,
                                     forward_steps_per_s=B * STEPS / t, gradient_steps_per_s=None))
             print(f"  {integ:17s} mujoco C     B={B:5d} fwd {B * STEPS / t:.3g}/s", flush=True)
-    pm = pinocchio_chain(chain)
-    if pm is not None:
-        aba, aba_d = pinocchio_times(pm, 2)
+    if PINOCCHIO:
+        aba, aba_d = pinocchio_times(pinocchio_model(chain), 2)
         out["pinocchio_acrobot"] = dict(aba_calls_per_s=1 / aba, aba_derivatives_calls_per_s=1 / aba_d)
         print(f"  pinocchio ABA {1 / aba:.3g} calls/s, ABA derivatives {1 / aba_d:.3g} calls/s", flush=True)
 
@@ -282,8 +243,6 @@ def acrobot_main(batches, quick, path):
         "gradient_vs_mjx (SIE, B=1024; target >= 30)": ratio("SemiImplicitEuler", "mjx", "gradient"),
     }
     out["ratios_batch1024"] = ratios
-    print(markdown_table(out["rows"], ["integrator", "engine", "batch", "forward_steps_per_s", "gradient_steps_per_s"]))
-    print(markdown_table(out["compile"], ["integrator", "engine", "forward_first_call_s", "gradient_first_call_s"]))
     for k, v in ratios.items():
         print(f"lagrange {k}: {v:.3g}")
     write_json(path, out)
@@ -312,9 +271,8 @@ def _trajectory_error(chain, mj, a):
     out = dict(max_abs_q_difference_to_mujoco=float(np.max(np.abs(q - qm)[finite])),
                max_abs_q=float(np.max(np.abs(qm[finite]))), rollouts_finite_in_both=int(finite.sum()),
                mujoco_one_ulp_spread=float(np.max(np.abs(qm_ulp - qm)[both])))
-    model = pinocchio_chain(chain)
-    if model is not None:
-        qp = pinocchio_rollouts(model, chain, q0, qd0, us)
+    if PINOCCHIO:
+        qp = pinocchio_rollouts(pinocchio_model(chain), chain, q0, qd0, us)
         fin = finite & np.all(np.isfinite(qp), axis=(1, 2))
         out["max_abs_q_difference_to_pinocchio"] = float(np.max(np.abs(q - qp)[fin]))
     return out
@@ -379,15 +337,14 @@ def scaling_rows(ns):
         row["lagrange_batch1_us_per_env_step"] = min(row["lagrange_batch1_us_per_env_step"], t1 / SCALING_T * 1e6)
         row["mujoco_c_batch1_us_per_env_step"] = tm1 / SCALING_T * 1e6
         if n <= JAX_ENGINES_MAX_N:
-            for name, make in (("mjx", lambda: mjx_engine(ch, "Euler")), ("brax", lambda: brax_engine(ch))):
-                fwd, grad = make()
+            for name, rollout in (("mjx", mjx_rollout(ch, DT)), ("brax", brax_rollout(ch, DT))):
+                fwd, grad = _jax_pair(rollout)
                 t, _ = time_jax(fwd, a, best=True)
                 tg, _ = time_jax(grad, a, best=True)
                 row |= {f"{name}_us_per_env_step": t / (1024 * SCALING_T) * 1e6,
                         f"{name}_gradient_us_per_env_step": tg / (1024 * SCALING_T) * 1e6}
-        pm = pinocchio_chain(ch)
-        if pm is not None:
-            aba, aba_d = pinocchio_times(pm, n, repeats=5, calls=1000, best=True)
+        if PINOCCHIO:
+            aba, aba_d = pinocchio_times(pinocchio_model(ch), n, repeats=5, calls=1000, best=True)
             row |= dict(pinocchio_aba_us_per_call=aba * 1e6, pinocchio_aba_derivatives_us_per_call=aba_d * 1e6)
         rows.append(row)
         print(f"  n={n:2d} " + ", ".join(f"{k}={v:.3g}" for k, v in row.items() if k != "n"), flush=True)
@@ -420,21 +377,18 @@ def scaling_fit(rows, n_min=8):
             r["gradient_speedup_over_pinocchio_aba_derivatives"] = (
                 r["pinocchio_aba_derivatives_us_per_call"] / r["lagrange_gradient_us_per_env_step"])
     goal = [r for r in rows if 4 <= r["n"] <= 32]
-    if goal:
-        fit["min_forward_speedup_over_mujoco_c_n4..32 (target >= 5)"] = min(r["forward_speedup_over_mujoco_c"]
-                                                                             for r in goal)
-        fit["min_gradient_speedup_over_mujoco_c_fd_n4..32"] = min(r["gradient_speedup_over_mujoco_c_fd"] for r in goal)
-        if "gradient_speedup_over_pinocchio_aba_derivatives" in goal[0]:
-            fit["min_gradient_speedup_over_pinocchio_aba_derivatives_n4..32 (target >= 3)"] = min(
-                r["gradient_speedup_over_pinocchio_aba_derivatives"] for r in goal)
-        fit["max_abs_q_difference_to_mujoco_n4..32 (target <= 1e-8)"] = max(r["max_abs_q_difference_to_mujoco"]
-                                                                             for r in goal)
-        fit["max_relative_q_difference_to_mujoco_n4..32"] = max(r["max_abs_q_difference_to_mujoco"] / r["max_abs_q"]
-                                                                 for r in goal)
-        fit["max_mujoco_one_ulp_spread_n4..32"] = max(r["mujoco_one_ulp_spread"] for r in goal)
-        if "max_abs_q_difference_to_pinocchio" in goal[0]:
-            fit["max_abs_q_difference_to_pinocchio_n4..32 (target <= 1e-8)"] = max(
-                r["max_abs_q_difference_to_pinocchio"] for r in goal)
+    for name, extreme, key, scale in (  # over n = 4 ... 32: a row's key (over its scale), where the rows have it
+            ("min_forward_speedup_over_mujoco_c_n4..32 (target >= 5)", min, "forward_speedup_over_mujoco_c", None),
+            ("min_gradient_speedup_over_mujoco_c_fd_n4..32", min, "gradient_speedup_over_mujoco_c_fd", None),
+            ("min_gradient_speedup_over_pinocchio_aba_derivatives_n4..32 (target >= 3)", min,
+             "gradient_speedup_over_pinocchio_aba_derivatives", None),
+            ("max_abs_q_difference_to_mujoco_n4..32 (target <= 1e-8)", max, "max_abs_q_difference_to_mujoco", None),
+            ("max_relative_q_difference_to_mujoco_n4..32", max, "max_abs_q_difference_to_mujoco", "max_abs_q"),
+            ("max_mujoco_one_ulp_spread_n4..32", max, "mujoco_one_ulp_spread", None),
+            ("max_abs_q_difference_to_pinocchio_n4..32 (target <= 1e-8)", max, "max_abs_q_difference_to_pinocchio",
+             None)):
+        if goal and key in goal[0]:
+            fit[name] = extreme(r[key] / r[scale] if scale else r[key] for r in goal)
     return fit
 
 
@@ -446,19 +400,11 @@ def scaling_main(ns, path, plot_path):
                     system="n_link_pendulum(n, gear=1.0)", integrator="SemiImplicitEuler", recursive_min=RECURSIVE_MIN)
     out["scaling"] = scaling_rows(ns)
     out["scaling_fit"] = scaling_fit(out["scaling"])
-    _print_scaling(out)
+    for k, v in out["scaling_fit"].items():
+        print(f"{k}: {v:.3g}")
     _plot_scaling(out["scaling"], plot_path)
     write_json(path, out)
     print(f"wrote {path} and {plot_path}")
-
-
-def _print_scaling(out):
-    """The sweep transposed, a line per quantity across n, then the fits."""
-    rows = out["scaling"]
-    for k in dict.fromkeys(k for r in rows for k in r):
-        print(f"{k:50s} " + " ".join(f"{r[k]:9.3g}" if k in r else f"{'-':>9s}" for r in rows))
-    for k, v in out["scaling_fit"].items():
-        print(f"{k}: {v:.3g}")
 
 
 def _plot_scaling(rows, path):
@@ -490,8 +436,7 @@ def _plot_scaling(rows, path):
     save_figure(fig, path, dpi=80)
 
 
-# ------------------------------------------------------------------------------ legged models (issues 42 and 43)
-
+# the legged models (issues 42 and 43)
 LEGGED_T = 20
 MJX_CONTACT_GRADIENT_BATCH = 128  # MJX's gradient through contact at batch 1024 ran out of the machine's 23 GB
 LEGGED = {  # Gymnasium's model, from_mjcf's limits and contact, MuJoCo's constraints, Brax's model (None: lagrange's)
@@ -552,7 +497,7 @@ def legged_main(batch, path):
         # Brax's hopper has no joint reference (MJCF's ref): its qpos is Gymnasium's less Gymnasium's qpos0
         shift = 0.0 if not brax_xml else mujoco.MjModel.from_xml_path(str(brax_file)).qpos0 - model.qpos0
         engines = {"lagrange": lagrange_engine(chain, lg.SemiImplicitEuler(), model.opt.timestep, argnums=(0, 1)),
-                   "mjx": mjx_engine(legged_model(xml, constraints, iterations=1), argnums=(0, 1)),
+                   "mjx": _jax_pair(mjx_rollout(legged_model(xml, constraints, iterations=1), DT), (0, 1)),
                    "brax": _jax_pair(lambda q0, qd0, us: brax(q0 + shift, qd0, us), (0, 1))}
         row = dict(model=name, dt=model.opt.timestep, n=chain.n, contact_points=len(chain.contact_links),
                    states_touching_in_mujoco=touching)

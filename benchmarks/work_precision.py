@@ -9,19 +9,18 @@ Problems (float64, 10 s, controls held over 0.05 s intervals, the same for every
 - ``double_pendulum``: ``n_link_pendulum(2)`` from q = (2.5, -1.5), qd = (0, 3) (chaotic);
 - ``cartpole``: ``cartpole()`` from q = (0, 2.5) under u(t) = 0.5 sin(1.3 t) + 0.3 sin(3.1 t).
 
-Reference: Dopri8 with rtol = atol = 1e-13, checked against Dopri8 at 1e-12 and against fixed-step
-Dopri8 at h = 2.5e-4; the larger difference is reported as the reference's own error.
+Reference: Dopri8 with rtol = atol = 1e-13, checked against Dopri8 at 1e-12 and against fixed-step Dopri8 at
+h = 2.5e-4; the larger difference is reported as the reference's own error.
 
-Each configuration is timed for a full 10 s rollout at batch 1 (median of repeats, after
-compilation) and at batch 1024 (the same initial state 1024 times; timed over the first 0.2 s and
-scaled by 50 to keep the sweep affordable). Errors: final-state error max |x(10) - x_ref(10)| over
-(q, qd), and final energy error |E(10) - E_ref(10)| / (E_ref(0) - V(0)).
+Each configuration is timed for a full 10 s rollout at batch 1 (median of repeats, after compilation) and at batch
+1024 (the same initial state 1024 times; timed over the first 0.2 s and scaled by 50 to keep the sweep affordable).
+Errors: final-state error max |x(10) - x_ref(10)| over (q, qd), and final energy error
+|E(10) - E_ref(10)| / (E_ref(0) - V(0)).
 
 Engines: lagrange (Euler, SemiImplicitEuler, SymplecticEuler, RK4, Tsit5, Dopri5, Dopri8 with fixed steps swept;
-Tsit5, Dopri5, Dopri8 with rtol = atol swept), Brax generalized (semi-implicit Euler, dt swept),
-MuJoCo C via ``mujoco.rollout`` with one thread per core (Euler, RK4, implicitfast, dt swept),
-and MJX (Euler, RK4; dt swept). Every other engine runs the chain exported by
-``lagrange.interop.mjcf.to_mjcf``.
+Tsit5, Dopri5, Dopri8 with rtol = atol swept), Brax generalized (semi-implicit Euler, dt swept), MuJoCo C via
+``mujoco.rollout`` with one thread per core (Euler, RK4, implicitfast, dt swept) and MJX (Euler, RK4; dt swept), the
+last three on the chain exported by ``lagrange.interop.mjcf.to_mjcf``.
 
 Writes ``benchmarks/results/work_precision.json``, ``benchmarks/results/work_precision.md`` (fastest configuration
 per error level and engine) and one plot per problem, ``docs/img/work_precision_<problem>.png`` (``--quick``:
@@ -65,8 +64,10 @@ def problems():
     }
 
 
-# ------------------------------------------------------------------------------ engines
-# Each runner factory returns (run(q0, qd0, us) -> (q, qd) at batch 1, run_batch(q0s, qd0s, us)).
+def _pair(run):
+    """A JAX engine's runners: ``run(q0, qd0, us) -> (q, qd)`` at the end, jitted at batch 1 and vmapped over a batch
+    of initial states under the same controls."""
+    return jax.jit(run), jax.jit(jax.vmap(run, in_axes=(0, 0, None)))
 
 
 def lagrange_runner(chain, solver, substeps, tol=None):
@@ -77,30 +78,17 @@ def lagrange_runner(chain, solver, substeps, tol=None):
     return _pair(run)
 
 
-def _pair(run):
-    """``run`` jitted at batch 1 and vmapped over a batch of initial states under the same controls."""
-    return jax.jit(run), jax.jit(jax.vmap(run, in_axes=(0, 0, None)))
-
-
-def brax_runner(chain, substeps):
-    return _pair(brax_rollout(chain, DT, substeps))
-
-
-def mjx_runner(chain, substeps, integrator):
-    return _pair(mjx_rollout(chain, DT, integrator, substeps))
-
-
 class MujocoRunner:
-    """``mujoco.rollout`` with one thread per core; returns the final (q, qd)."""
+    """MuJoCo C's ``mujoco.rollout``, one thread per core: ``runner(q0, qd0, us, batch=1) -> (q, qd)`` at the end, from
+    ``batch`` copies of the initial state."""
 
-    def __init__(self, chain, substeps, integrator, nthread=None):
+    def __init__(self, chain, substeps, integrator):
         import mujoco
-        import mujoco.rollout as rollout
+        from mujoco import rollout
 
         self.mujoco, self.rollout = mujoco, rollout
         self.model = mujoco.MjModel.from_xml_string(to_mjcf(chain, timestep=DT / substeps, integrator=integrator))
-        self.nthread = nthread or os.cpu_count()
-        self.datas = [mujoco.MjData(self.model) for _ in range(self.nthread)]
+        self.datas = [mujoco.MjData(self.model) for _ in range(os.cpu_count())]
         self.substeps, self.n = substeps, chain.n
         self.spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
@@ -119,9 +107,6 @@ class MujocoRunner:
         state, _ = self.rollout.rollout(self.model, self.datas, x0, ctrl, nstep=nstep, persistent_pool=True)
         last = state[0, -1]
         return last[1 : 1 + self.n], last[1 + self.n : 1 + 2 * self.n]
-
-
-# ------------------------------------------------------------------------------ measurement
 
 
 def _energy(chain, q, qd):
@@ -272,8 +257,8 @@ def main(argv=None):
                 rows.append(measure(name, chain, q0, qd0, us, f"{sname} tol={tol:.0e}", "lagrange",
                                     lagrange_runner(chain, solvers[sname], 1, tol), ref, tol=tol))
         for k in k_brax:
-            rows.append(measure(name, chain, q0, qd0, us, f"Euler h={DT / k:.3g}", "brax", brax_runner(chain, k),
-                                ref, substeps=k, integrator="Euler"))
+            rows.append(measure(name, chain, q0, qd0, us, f"Euler h={DT / k:.3g}", "brax",
+                                _pair(brax_rollout(chain, DT, k)), ref, substeps=k, integrator="Euler"))
         for integ in mj_int:
             for k in k_mj:
                 rows.append(measure(name, chain, q0, qd0, us, f"{integ} h={DT / k:.3g}", "mujoco",
@@ -281,7 +266,7 @@ def main(argv=None):
         for integ in mjx_int:
             for k in k_mjx:
                 rows.append(measure(name, chain, q0, qd0, us, f"{integ} h={DT / k:.3g}", "mjx",
-                                    mjx_runner(chain, k, integ), ref, substeps=k, integrator=integ))
+                                    _pair(mjx_rollout(chain, DT, integ, k)), ref, substeps=k, integrator=integ))
         plot(rows, name, ref, img / f"work_precision_{name}{suffix}.png")
     out["total_wall_s"] = time.perf_counter() - t0
     md = ["# Run time against error" + (" (--quick)" if args.quick else ""), "",

@@ -1,11 +1,11 @@
 """Planar kinematic trees: branches, forests, attach points, joint springs and hinges of either sense.
 
-Against the literal Euler-Lagrange derivation (``benchmarks/oracles/euler_lagrange.py``, which writes each link's
-position along its path from the world) on both derivations (unrolled below ``RECURSIVE_MIN`` links, recursive from
-it); against Pinocchio's CRBA, RNEA and ABA on a branched tree built independently from the same parameters; gradients
-through a tree rollout against central differences; the energy of an undamped tree with springs conserved at RK4's
-order; and the clear errors of a tree defined by hand. Tolerances as in ``test_dynamics.py`` (1e-12 relative for M,
-bias and qdd in float64).
+Against the literal Euler-Lagrange derivation (``oracles/euler_lagrange.py``, which writes each link's position along
+its path from the world) on both derivations (unrolled below ``RECURSIVE_MIN`` links, recursive from it); against
+Pinocchio's CRBA, RNEA and ABA on a branched tree built independently from the same parameters
+(``oracles/pinocchio.py``); gradients through a tree rollout against central differences; the energy of an undamped
+tree with springs conserved at RK4's order; and the clear errors of a tree defined by hand. Tolerances as in
+``test_dynamics.py`` (1e-12 relative for M, bias and qdd in float64).
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ import pytest
 
 import lagrange as lg
 from oracles import euler_lagrange as el
+from oracles.pinocchio import pinocchio_model
 from lagrange.chain import WORLD, Chain, Link
 from tests.helpers import assert_close
 
@@ -103,37 +104,6 @@ def test_trees_match_the_literal_derivation(make):
     assert_close(tau, jnp.einsum("ij,kj->ki", lg.actuation_matrix(chain), u), rel=1e-11, what="inverse dynamics")
 
 
-def _pinocchio_model(chain: Chain):
-    """A Pinocchio model of ``chain`` built from its parameters: each joint a revolute about y (MuJoCo's and
-    Pinocchio's +y is our -y: ``q_pin = -sense q``) or a prismatic joint along its axis in the x-z plane, placed at its
-    attach point and turned by its offset."""
-    import pinocchio as pin
-
-    model = pin.Model()
-    model.gravity.linear = np.array([0.0, 0.0, -float(chain.gravity)])
-    attach = dict(zip(chain.attached, np.asarray(chain.attach) if chain.attach is not None else []))
-    ids, frames = [], []
-    normal = np.zeros(chain.n) if chain.com_normal is None else np.asarray(chain.com_normal)
-    for i, joint in enumerate(chain.joints):
-        p = chain.parents[i]
-        parent = 0 if p < 0 else ids[p]
-        x, z = attach[i] if i in attach else (0.0, -float(chain.length[p]) if p >= 0 else 0.0)
-        turn = chain.offsets[i]  # about -y
-        R = np.array([[np.cos(turn), 0.0, np.sin(turn)], [0.0, 1.0, 0.0], [-np.sin(turn), 0.0, np.cos(turn)]])
-        placement = pin.SE3(R, np.array([x, 0.0, z]))
-        if joint == "revolute":
-            jm = pin.JointModelRY()
-        else:
-            a = chain.axes[i] - turn  # in this body's (turned) frame
-            jm = pin.JointModelPrismaticUnaligned(np.array([np.cos(a), 0.0, np.sin(a)]))
-        jid = model.addJoint(parent, jm, placement, f"q{i}")
-        I = float(chain.inertia[i])
-        model.appendBodyToJoint(jid, pin.Inertia(float(chain.mass[i]), np.array([normal[i], 0.0, -float(chain.com[i])]),
-                                                 np.diag([I, I, I])), pin.SE3.Identity())
-        ids.append(jid)
-    return model
-
-
 def test_a_branched_tree_matches_pinocchio():
     """The biped without springs and damping (Pinocchio has neither): M by CRBA, the bias by RNEA at zero
     acceleration, qdd by ABA with the joints' armature, at random states."""
@@ -142,7 +112,7 @@ def test_a_branched_tree_matches_pinocchio():
                                                              "armature", "gear", "com_normal", "offset", "parent",
                                                              "attach", "sense")}}) for lk in biped().links()]
     chain = Chain(links)
-    model = _pinocchio_model(chain)
+    model = pinocchio_model(chain)
     data = model.createData()
     sign = np.array([-s if j == "revolute" else 1.0 for j, s in zip(chain.joints, chain.senses)])
     model.armature = np.zeros(chain.n) if chain.armature is None else np.asarray(chain.armature)
