@@ -18,8 +18,7 @@ QUICK = REPO / "runs" / "benchmarks"  # --quick runs: git-ignored, never publish
 
 
 def outputs(quick: bool) -> tuple[pathlib.Path, pathlib.Path]:
-    """``(folder of result files, folder of plots)``: :data:`RESULTS` and :data:`IMG` for a full run,
-    :data:`QUICK` for both with ``--quick``."""
+    """``(folder of result files, folder of plots)``: :data:`RESULTS` and :data:`IMG`, or :data:`QUICK` twice."""
     return (QUICK, QUICK) if quick else (RESULTS, IMG)
 
 
@@ -57,14 +56,12 @@ def bodies_suffix(bodies: str) -> str:
 
 
 def bodies_marker(bodies: str) -> dict:
-    """``{}`` for the rods, else ``{"bodies": bodies}``: marks a result dict on other bodies, so the rods' result
-    files stay as they were."""
+    """``{}`` for the rods, else ``{"bodies": bodies}``: marks a result dict on other bodies."""
     return {} if bodies == "rods" else {"bodies": bodies}
 
 
 def marked_bodies(result: dict) -> str:
-    """The bodies a result dict (or a config dict) names: its ``"bodies"``, the rods where there is none (the inverse
-    of :func:`bodies_marker`; results and configs from before the field existed are on the rods)."""
+    """The bodies a result (or config) dict names, the rods where it names none (:func:`bodies_marker`'s inverse)."""
     return result.get("bodies", "rods")
 
 

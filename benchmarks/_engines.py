@@ -1,8 +1,8 @@
-"""Brax generalized and MJX rollouts of a chain exported by ``to_mjcf`` (or of a model of their own), for
+"""Brax generalized, MJX and MuJoCo C on a chain exported by ``to_mjcf`` (or on a model of their own), for
 ``throughput`` and ``work_precision``.
 
-Each returns one environment's ``rollout(q0, qd0, us) -> (q, qd)``, the final state after ``substeps`` steps of
-``dt / substeps`` under each control ``us[t]`` (a ``fori_loop`` over the substeps when there are several).
+The JAX engines return one environment's ``rollout(q0, qd0, us) -> (q, qd)``, the final state after ``substeps``
+steps of ``dt / substeps`` under each control ``us[t]`` (a ``fori_loop`` over the substeps when there are several).
 """
 
 from __future__ import annotations
@@ -11,6 +11,7 @@ import os
 import warnings
 
 import jax
+import numpy as np
 
 from lagrange.interop.mjcf import to_mjcf
 
@@ -58,3 +59,34 @@ def mjx_rollout(chain, dt, integrator="Euler", substeps=1):
         return d.qpos, d.qvel
 
     return rollout
+
+
+class MujocoC:
+    """MuJoCo C's ``mujoco.rollout`` with ``nthread`` threads, ``mujoco.MjModel`` ``model`` or ``model`` a chain written
+    with ``timestep=dt`` and ``integrator``: :meth:`make` prepares a batch of rollouts."""
+
+    def __init__(self, model, dt, integrator="Euler", nthread=2):
+        import mujoco
+        from mujoco import rollout
+
+        self.mujoco, self.rollout = mujoco, rollout
+        self.model = model if isinstance(model, mujoco.MjModel) else mujoco.MjModel.from_xml_string(
+            to_mjcf(model, timestep=dt, integrator=integrator))
+        self.datas = [mujoco.MjData(self.model) for _ in range(nthread)]
+        self.spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+        self.nstate = mujoco.mj_stateSize(self.model, self.spec)
+
+    def make(self, q0, qd0, us):
+        """``run() -> states (B, T, nstate)``: the rollouts from ``q0, qd0 (B, n)`` under ``us (B, T, m)``."""
+        B, n = q0.shape
+        x0 = np.zeros((B, self.nstate))
+        x0[:, 1 : 1 + n], x0[:, 1 + n : 1 + 2 * n] = q0, qd0
+        ctrl = np.asarray(us) if self.model.nu else None
+        nstep = us.shape[1]
+        state = np.empty((B, nstep, self.nstate))
+
+        def run():
+            self.rollout.rollout(self.model, self.datas, x0, ctrl, nstep=nstep, state=state, persistent_pool=True)
+            return state
+
+        return run

@@ -8,22 +8,14 @@ import time
 import jax
 
 
-def block(x):
-    """Wait for every array in a pytree."""
-    return jax.block_until_ready(x)
-
-
 def median_time(fn, *args, repeats: int = 5, min_time: float = 0.05, warmup: int = 1, best: bool = False) -> float:
-    """Median (``best``: minimum) seconds per call of ``fn(*args)`` after ``warmup`` calls.
-
-    Each repeat runs the call often enough to last at least ``min_time`` seconds, so short
-    calls are not dominated by timer resolution. The minimum is the robust choice on a machine
-    shared with other work.
-    """
+    """Median (``best``: minimum) seconds per call of ``fn(*args)`` after ``warmup`` calls. Each repeat runs the call
+    often enough to last at least ``min_time`` seconds, so that short calls are not timer noise; the minimum is the
+    robust choice on a machine shared with other work."""
     for _ in range(warmup):
-        block(fn(*args))
+        jax.block_until_ready(fn(*args))
     t = time.perf_counter()
-    block(fn(*args))
+    jax.block_until_ready(fn(*args))
     one = max(time.perf_counter() - t, 1e-7)
     number = max(1, int(min_time / one))
     samples = []
@@ -31,6 +23,6 @@ def median_time(fn, *args, repeats: int = 5, min_time: float = 0.05, warmup: int
         t = time.perf_counter()
         for _ in range(number):
             out = fn(*args)
-        block(out)
+        jax.block_until_ready(out)
         samples.append((time.perf_counter() - t) / number)
     return min(samples) if best else statistics.median(samples)

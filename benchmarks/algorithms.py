@@ -7,30 +7,29 @@
     python -m benchmarks.algorithms --budget laptop --bodies brax_v1 --tasks acrobot   # on the authors' bodies
 
 Every algorithm trains on the same task objects (``lagrange.tasks.PAPER_TASKS[name].rods()``; the Brax trainers see
-them through :class:`lagrange.interop.brax.BraxEnv`, unchanged). Each run's final policy is evaluated
-deterministically here on the same 16 random starts (``PRNGKey(10_000 + seed)``), with the task's 500-step return and
+them through :class:`lagrange.interop.brax.BraxEnv`, unchanged), and each final policy is evaluated deterministically
+here on the same 16 random starts (``PRNGKey(10_000 + seed)``) with the task's 500-step return and
 :func:`lagrange.tasks.balanced`. Learning curves: deterministic evaluation returns against simulated env steps and
-against wall-clock seconds since the run's start (compilation and evaluation included); Brax's come from Brax's own
+against wall-clock seconds since the run's start (compilation and evaluation included); Brax's from Brax's own
 evaluator (``deterministic_eval=True``) on its own random starts. ``--bodies brax_v1`` puts every algorithm on the
-authors' Brax v1 bodies (``Acrobot.brax_v1()`` etc., those the paper's Table I was measured on); its runs, table and
-plots get a ``_brax_v1`` suffix.
+authors' Brax v1 bodies (``Acrobot.brax_v1()`` etc., those of the paper's Table I); its files get a ``_brax_v1``
+suffix.
 
 Budgets (``--budget``): ``laptop`` (:data:`LAPTOP`), what two shared CPU cores afford: SAC and Brax APG with the
 hyperparameters and budgets of the CE-APG paper's appendix IX-C, PPO with its hyperparameters but 1.2e6 of its 8e7
 steps (:data:`LAPTOP_CUTS`), SHAC the SHAC authors' cartpole config (``SHACConfig()``, 1e6 steps), CE-APG this
-project's laptop protocol (``CEAPGConfig.laptop(task)``, ``(sin, cos)`` observations on the acrobot, the ``laptop``
-budget of ``benchmarks/paper_tables.py``); ``--ce-apg-from DIR`` reads CE-APG's results from the
-``ce_apg_<task>_<seed>.json`` files that ``benchmarks/paper_tables.py`` writes instead of training (its curve is then
-the best candidate's training fitness from the run's checkpoint header, when the ``.eqx`` is beside it). ``quick``
-(:data:`QUICK`, also ``--quick``): every budget shrunk to a smoke test, whose numbers compare nothing.
+project's laptop protocol (``CEAPGConfig.laptop(task)``, the ``laptop`` budget of ``benchmarks/paper_tables.py``);
+``--ce-apg-from DIR`` reads CE-APG's results from the ``ce_apg_<task>_<seed>.json`` files that
+``benchmarks/paper_tables.py`` writes instead of training (its curve is then the best candidate's training fitness
+from the checkpoint beside it, if any). ``quick`` (:data:`QUICK`, also ``--quick``): a smoke test of every budget,
+whose numbers compare nothing.
 
-Each (algorithm, task, seed) run writes its result as soon as it finishes to
-``--runs-dir/<budget>/<algo>_<task>_<seed>.json`` and is skipped when that file exists, so a killed benchmark resumes
-where it stopped (``--force`` redoes the selected runs); it records its process CPU seconds and the load average (a
-shared machine inflates the wall-clock). The table and plots are made from every run file of the budget:
-``benchmarks/results/algorithms_laptop[_brax_v1].{json,md}`` and ``docs/img/algorithms_laptop[_brax_v1]_<task>.png``
-(curves against env steps and against wall-clock); ``--quick`` writes ``algorithms_quick*`` under ``runs/benchmarks/``,
-not published. ``--plot-only`` regenerates them from the saved runs (on a fresh clone, restored from the JSON).
+Each (algorithm, task, seed) run writes its result, with its process CPU seconds and the load average, as soon as it
+finishes to ``--runs-dir/<budget>/<algo>_<task>_<seed>.json`` and is skipped when that file exists, so a killed
+benchmark resumes (``--force`` redoes the selected runs). The table and plots are made from every run file of the
+budget: ``benchmarks/results/algorithms_laptop[_brax_v1].{json,md}`` and
+``docs/img/algorithms_laptop[_brax_v1]_<task>.png`` (``--quick``: ``algorithms_quick*`` under ``runs/benchmarks/``,
+not published); ``--plot-only`` remakes them from the saved runs (on a fresh clone, restored from the JSON).
 """
 
 from __future__ import annotations
@@ -77,30 +76,27 @@ PAPER = {
 # SAC and Brax APG keep the paper's budgets; PPO is cut to keep a run near 10 minutes of that wall-clock.
 PPO_LAPTOP_STEPS = 1_228_800  # 3 PPO updates of 409,600 steps (the paper: 8e7, 195 updates)
 
+# the hyperparameters of the CE-APG paper's appendix IX-C, in both budgets
+PPO_HP = dict(unroll_length=50, num_updates_per_batch=8, discounting=0.99, learning_rate=3e-4, entropy_cost=1e-3,
+              normalize_observations=True)
+SAC_HP = dict(num_envs=64, batch_size=128, discounting=0.95, learning_rate=1e-3, normalize_observations=True)
+BRAX_APG_HP = dict(num_envs=24, learning_rate=5e-4, horizon_length=HORIZON, normalize_observations=True)
 QUICK = {
     "ce_apg": dict(num_candidates=4, num_elites=2, iterations=3, apg_steps=5, episodes=2),
     "shac": dict(num_envs=32, iterations=40),
-    "ppo": dict(num_timesteps=60_000, num_envs=64, batch_size=64, num_minibatches=4, unroll_length=50,
-                num_updates_per_batch=8, discounting=0.99, learning_rate=3e-4, entropy_cost=1e-3,
-                normalize_observations=True, num_evals=3),
-    "sac": dict(num_timesteps=30_000, num_envs=64, batch_size=128, discounting=0.95, learning_rate=1e-3,
-                normalize_observations=True, num_evals=3),
-    "brax_apg": dict(env_steps=72_000, num_envs=24, learning_rate=5e-4, horizon_length=HORIZON,
-                     normalize_observations=True, num_evals=3),
+    "ppo": dict(num_timesteps=60_000, num_envs=64, batch_size=64, num_minibatches=4, **PPO_HP, num_evals=3),
+    "sac": dict(num_timesteps=30_000, **SAC_HP, num_evals=3),
+    "brax_apg": dict(env_steps=72_000, **BRAX_APG_HP, num_evals=3),
 }
-
 LAPTOP = {
     # this project's laptop protocol (benchmarks/paper_tables.py --budget laptop): 1.8e8 steps, hours here
     "ce_apg": dict(preset="laptop"),  # CEAPGConfig.laptop(task), (sin, cos) observations on the acrobot
     "shac": {},  # SHACConfig defaults (the SHAC authors' config) and Actor.for_task(task), the task's 500-step episodes
-    # the CE-APG paper's appendix IX-C; PPO cut from its 8e7 steps
-    "ppo": dict(num_timesteps=PPO_LAPTOP_STEPS, num_envs=512, batch_size=256, num_minibatches=32, unroll_length=50,
-                num_updates_per_batch=8, discounting=0.99, learning_rate=3e-4, entropy_cost=1e-3,
-                normalize_observations=True, num_evals=4),
-    "sac": dict(num_timesteps=2_000_000, num_envs=64, batch_size=128, discounting=0.95, learning_rate=1e-3,
-                normalize_observations=True, num_evals=20),
-    "brax_apg": dict(env_steps=10_000_000, num_envs=24, learning_rate=5e-4, horizon_length=HORIZON,
-                     normalize_observations=True, num_evals=20),
+    # the paper's budgets but PPO's, cut from its 8e7 steps
+    "ppo": dict(num_timesteps=PPO_LAPTOP_STEPS, num_envs=512, batch_size=256, num_minibatches=32, **PPO_HP,
+                num_evals=4),
+    "sac": dict(num_timesteps=2_000_000, **SAC_HP, num_evals=20),
+    "brax_apg": dict(env_steps=10_000_000, **BRAX_APG_HP, num_evals=20),
 }
 LAPTOP_CUTS = {
     "ce_apg": "CEAPGConfig.laptop(task): 1.8e8 (acrobot), 7.2e7 (cartpole), 9e7 (double cartpole) of the paper's "

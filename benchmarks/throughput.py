@@ -36,9 +36,9 @@ import numpy as np  # noqa: E402
 
 import lagrange as lg  # noqa: E402
 from benchmarks._cli import asset, gymnasium_model, markdown_table, outputs, save_figure, subplots  # noqa: E402
-from benchmarks._engines import brax_rollout, mjx_rollout  # noqa: E402
-from benchmarks._timing import block, median_time  # noqa: E402
-from lagrange.interop.mjcf import from_mjcf, to_mjcf  # noqa: E402
+from benchmarks._engines import MujocoC, brax_rollout, mjx_rollout  # noqa: E402
+from benchmarks._timing import median_time  # noqa: E402
+from lagrange.interop.mjcf import from_mjcf  # noqa: E402
 from optim.checkpoint import write_json  # noqa: E402
 from oracles import closed_form as cf  # noqa: E402
 from oracles.pinocchio import pinocchio_model  # noqa: E402
@@ -78,33 +78,6 @@ def closed_form_engine():
         return q[-1], qd[-1]
 
     return _jax_pair(rollout)
-
-
-class MujocoC:
-    def __init__(self, chain, integrator, nthread=2):
-        import mujoco
-        import mujoco.rollout as rollout
-
-        self.mujoco, self.rollout = mujoco, rollout
-        self.model = chain if isinstance(chain, mujoco.MjModel) else mujoco.MjModel.from_xml_string(
-            to_mjcf(chain, timestep=DT, integrator=integrator))
-        self.datas = [mujoco.MjData(self.model) for _ in range(nthread)]
-        self.spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-        self.nstate = mujoco.mj_stateSize(self.model, self.spec)
-
-    def make(self, q0, qd0, us):
-        B, n = q0.shape
-        x0 = np.zeros((B, self.nstate))
-        x0[:, 1 : 1 + n], x0[:, 1 + n : 1 + 2 * n] = q0, qd0
-        ctrl = np.asarray(us) if self.model.nu else None
-        nstep = us.shape[1]
-        state = np.empty((B, nstep, self.nstate))
-
-        def run():
-            self.rollout.rollout(self.model, self.datas, x0, ctrl, nstep=nstep, state=state, persistent_pool=True)
-            return state
-
-        return run
 
 
 def mujoco_fd_time(mj, n, repeats=5, best=True):
@@ -152,7 +125,7 @@ def _inputs(n, m, B, T=STEPS, seed=0):
 
 def time_jax(fn, args, cpu=False, best=False, repeats=None):
     t, c = time.perf_counter(), time.process_time()
-    block(fn(*args))
+    jax.block_until_ready(fn(*args))
     first, first_cpu = time.perf_counter() - t, time.process_time() - c
     run = median_time(fn, *args, repeats=repeats or (5 if best else 3), min_time=0.05, best=best)
     return (run, first, first_cpu) if cpu else (run, first)
@@ -217,7 +190,7 @@ def acrobot_main(batches, quick, path):
             print(f"  {integ:17s} {name:12s} B={B:5d} fwd {row['forward_steps_per_s']:.3g}/s "
                   f"grad {row['gradient_steps_per_s']:.3g}/s (first calls {cf:.2f} s, {cg:.2f} s)", flush=True)
     for integ, mjname in (("SemiImplicitEuler", "Euler"), ("RK4", "RK4")):
-        mj = MujocoC(chain, mjname)
+        mj = MujocoC(chain, DT, mjname)
         for B in batches:
             q0, qd0, us = (np.asarray(x) for x in _inputs(2, 1, B))
             t = median_time(mj.make(q0, qd0, us), repeats=3, min_time=0.05)
@@ -324,7 +297,7 @@ def scaling_rows(ns):
                 row |= dict(lagrange_first_call_cpu_s=first_cpu, lagrange_gradient_first_call_cpu_s=gfirst_cpu)
             forward[tag], inputs[tag] = (lambda fwd=fwd, a=a: fwd(*a)), a  # noqa: E731
         a = inputs[""]
-        mj = MujocoC(ch, "Euler")
+        mj = MujocoC(ch, DT)
         # the ratios to MuJoCo C: both sides timed again in alternating rounds, so that a busy spell on the shared
         # machine slows both rather than one
         t, tm = _alternating(forward[""], mj.make(*(np.asarray(x) for x in a)))
@@ -332,7 +305,7 @@ def scaling_rows(ns):
         row["mujoco_c_us_per_env_step"] = tm / (1024 * SCALING_T) * 1e6
         row |= _trajectory_error(ch, mj, a)
         row["mujoco_c_fd_jacobians_us_per_call"] = mujoco_fd_time(mj, n) * 1e6
-        mj1 = MujocoC(ch, "Euler", nthread=1)
+        mj1 = MujocoC(ch, DT, nthread=1)
         t1, tm1 = _alternating(forward["_batch1"], mj1.make(*(np.asarray(x) for x in inputs["_batch1"])))
         row["lagrange_batch1_us_per_env_step"] = min(row["lagrange_batch1_us_per_env_step"], t1 / SCALING_T * 1e6)
         row["mujoco_c_batch1_us_per_env_step"] = tm1 / SCALING_T * 1e6

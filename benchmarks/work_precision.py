@@ -42,9 +42,8 @@ import numpy as np  # noqa: E402
 
 import lagrange as lg  # noqa: E402
 from benchmarks._cli import outputs, save_figure, subplots  # noqa: E402
-from benchmarks._engines import brax_rollout, mjx_rollout  # noqa: E402
-from benchmarks._timing import block, median_time  # noqa: E402
-from lagrange.interop.mjcf import to_mjcf  # noqa: E402
+from benchmarks._engines import MujocoC, brax_rollout, mjx_rollout  # noqa: E402
+from benchmarks._timing import median_time  # noqa: E402
 from optim.checkpoint import write_json, write_text  # noqa: E402
 
 DT = 0.05  # control interval [s]
@@ -78,35 +77,23 @@ def lagrange_runner(chain, solver, substeps, tol=None):
     return _pair(run)
 
 
-class MujocoRunner:
-    """MuJoCo C's ``mujoco.rollout``, one thread per core: ``runner(q0, qd0, us, batch=1) -> (q, qd)`` at the end, from
-    ``batch`` copies of the initial state."""
+def mujoco_runner(chain, substeps, integrator):
+    """MuJoCo C, one thread per core: ``run(q0, qd0, us, batch=1) -> (q, qd)`` at the end, from ``batch`` copies of
+    the initial state."""
+    mj, n = MujocoC(chain, DT / substeps, integrator, nthread=os.cpu_count()), chain.n
 
-    def __init__(self, chain, substeps, integrator):
-        import mujoco
-        from mujoco import rollout
-
-        self.mujoco, self.rollout = mujoco, rollout
-        self.model = mujoco.MjModel.from_xml_string(to_mjcf(chain, timestep=DT / substeps, integrator=integrator))
-        self.datas = [mujoco.MjData(self.model) for _ in range(os.cpu_count())]
-        self.substeps, self.n = substeps, chain.n
-        self.spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-
-    def _x0(self, q0, qd0):
-        d = self.mujoco.MjData(self.model)
-        d.qpos[:], d.qvel[:] = q0, qd0
-        x = np.zeros(self.mujoco.mj_stateSize(self.model, self.spec))
-        self.mujoco.mj_getState(self.model, d, x, self.spec)
-        return x
-
-    def __call__(self, q0, qd0, us, batch=1):
-        x0 = np.repeat(self._x0(np.asarray(q0), np.asarray(qd0))[None], batch, 0)
+    def run(q0, qd0, us, batch=1):
+        d = mj.mujoco.MjData(mj.model)
+        d.qpos[:], d.qvel[:] = np.asarray(q0), np.asarray(qd0)
+        x0 = np.zeros(mj.mujoco.mj_stateSize(mj.model, mj.spec))
+        mj.mujoco.mj_getState(mj.model, d, x0, mj.spec)
         us = np.asarray(us)
-        nstep = us.shape[0] * self.substeps
-        ctrl = np.repeat(us, self.substeps, axis=0)[None] if self.model.nu else None
-        state, _ = self.rollout.rollout(self.model, self.datas, x0, ctrl, nstep=nstep, persistent_pool=True)
-        last = state[0, -1]
-        return last[1 : 1 + self.n], last[1 + self.n : 1 + 2 * self.n]
+        ctrl = np.repeat(us, substeps, axis=0)[None] if mj.model.nu else None
+        state, _ = mj.rollout.rollout(mj.model, mj.datas, np.repeat(x0[None], batch, 0), ctrl,
+                                      nstep=us.shape[0] * substeps, persistent_pool=True)
+        return state[0, -1, 1 : 1 + n], state[0, -1, 1 + n : 1 + 2 * n]
+
+    return run
 
 
 def _energy(chain, q, qd):
@@ -118,7 +105,7 @@ def measure(problem, chain, q0, qd0, us, label, engine, runner, ref, *, substeps
     run1, runb = runner if isinstance(runner, tuple) else (runner, None)
     q0j, qd0j, usj = jnp.asarray(q0, float), jnp.asarray(qd0, float), jnp.asarray(us, float)
     t = time.perf_counter()
-    q, qd = block(run1(q0j, qd0j, usj))
+    q, qd = jax.block_until_ready(run1(q0j, qd0j, usj))
     compile_s = time.perf_counter() - t
     t1 = median_time(run1, q0j, qd0j, usj, repeats=3, min_time=0.02)
     x = np.concatenate([np.asarray(q), np.asarray(qd)])
@@ -130,7 +117,7 @@ def measure(problem, chain, q0, qd0, us, label, engine, runner, ref, *, substeps
         tb = median_time(lambda: runner(q0, qd0, ub, batch=BATCH), repeats=3, min_time=0.0, warmup=0)
     else:
         qb, qdb = jnp.tile(q0j, (BATCH, 1)), jnp.tile(qd0j, (BATCH, 1))
-        block(runb(qb, qdb, ub))
+        jax.block_until_ready(runb(qb, qdb, ub))
         tb = median_time(runb, qb, qdb, ub, repeats=3, min_time=0.0)
     row = dict(problem=problem, engine=engine, config=label, substeps=substeps,
                h=DT / substeps if substeps else None, tol=tol, integrator=integrator,
@@ -262,7 +249,7 @@ def main(argv=None):
         for integ in mj_int:
             for k in k_mj:
                 rows.append(measure(name, chain, q0, qd0, us, f"{integ} h={DT / k:.3g}", "mujoco",
-                                    MujocoRunner(chain, k, integ), ref, substeps=k, integrator=integ))
+                                    mujoco_runner(chain, k, integ), ref, substeps=k, integrator=integ))
         for integ in mjx_int:
             for k in k_mjx:
                 rows.append(measure(name, chain, q0, qd0, us, f"{integ} h={DT / k:.3g}", "mjx",
