@@ -14,6 +14,7 @@ from lagrange.dynamics import (
     mass_matrix,
 )
 from lagrange.integrate import Trajectory, simulate, step
+from lagrange.batch import simulate_batch
 from lagrange.kinematics import com_positions, positions
 from lagrange.solvers import RK4, Dopri5, Dopri8, Euler, SemiImplicitEuler, SymplecticEuler, Tsit5
 from lagrange import systems
@@ -28,6 +29,7 @@ __all__ = [
     "Tsit5",
     "Trajectory",
     "simulate",
+    "simulate_batch",
     "step",
     "systems",
     "Chain",

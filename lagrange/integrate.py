@@ -306,6 +306,7 @@ def simulate(
         max_steps: with adaptive steps, the most solver steps one control interval may take.
         check: raise (``eqx.error_if``) if the final state is not finite, which also reports a
             mass matrix met singular on the way; check the chain's parameters, ``q0``, ``qd0`` and the controls.
+            Under ``jax.vmap`` the error cannot name the member: :func:`lagrange.simulate_batch` does.
         checkpoint: with fixed steps and ``adjoint=None``, recompute each interval's
             intermediates in the backward pass (``jax.checkpoint``) instead of storing them:
             memory O(T) states only, and 2-3x faster gradients for cheap dynamics on a CPU.
