@@ -12,6 +12,7 @@ import pytest
 import optim
 from lagrange.tasks import Acrobot
 from policies import Actor, GRUPolicy
+from tests.helpers import pendulum_swingup
 
 
 def test_defaults_are_the_authors_cartpole_settings():
@@ -39,7 +40,7 @@ def test_bptt_presets_are_the_authors_bptt_settings():
 
 
 def test_without_a_critic_an_epoch_trains_the_actor_and_leaves_the_critic():
-    task = Acrobot.brax_v1(horizon=20)
+    task = pendulum_swingup(horizon=10)
     cfg = optim.SHACConfig(num_envs=4, short_horizon=4, iterations=2, critic_units=(6,), use_critic=False)
     trainer = cfg.make_trainer(task, Actor.for_task(task, units=(8,)))
     s0 = jax.jit(trainer.init)(jax.random.PRNGKey(0))
