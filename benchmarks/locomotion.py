@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import argparse
 import functools
-import json
 import os
 import pathlib
 import platform
@@ -40,7 +39,7 @@ import time
 import jax
 import numpy as np
 
-from benchmarks._cli import markdown_table, save_figure, subplots
+from benchmarks._cli import markdown_table, read_runs, restore_runs, run_file, save_figure, subplots
 from benchmarks.algorithms import BraxPolicy
 from lagrange.tasks import Cheetah, Hopper
 from optim import SHACConfig, evaluate
@@ -77,7 +76,7 @@ def run_differentiable(algo, task, seed, runs_dir):
             "wall_clock": r["wall_clock_s"], "curve": curve, "config": r["config"]}
 
 
-def run_ppo(task_name, seed, runs_dir):
+def run_ppo(task_name, seed):
     """Brax PPO on the task through the Brax adapter; returns the run record."""
     from brax.training.agents.ppo import networks as ppo_networks
     from brax.training.agents.ppo.train import train as ppo_train
@@ -111,16 +110,16 @@ def run_ppo(task_name, seed, runs_dir):
 def train_one(algo, task, seed, runs_dir):
     """Train (or resume) one run and write its record ``runs_dir/<algo>_<task>_<seed>.json``."""
     load0, cpu0 = os.getloadavg(), time.process_time()
-    r = run_ppo(task, seed, runs_dir) if algo == "ppo" else run_differentiable(algo, task, seed, runs_dir)
+    r = run_ppo(task, seed) if algo == "ppo" else run_differentiable(algo, task, seed, runs_dir)
     record = {"algo": algo, "task": task, "seed": seed, **r, "cpu_seconds": time.process_time() - cpu0,
               "loadavg_start": list(load0), "loadavg_end": list(os.getloadavg())}
-    write_json(os.path.join(runs_dir, f"{algo}_{task}_{seed}.json"), record)
+    write_json(run_file(runs_dir, algo, task, seed), record)
     return record
 
 
 def load_runs(runs_dir):
     """``{task: {algo: [record, ...]}}`` from the run files, seeds in order."""
-    found = [json.loads(p.read_text()) for p in sorted(pathlib.Path(runs_dir).glob("*_*_*.json"))]
+    found = read_runs(runs_dir)
     runs: dict = {}
     for task in TASKS:
         for algo in ALGORITHMS:
@@ -184,17 +183,14 @@ def main(argv=None):
     p.add_argument("--plot-only", action="store_true", help="only the table and plots from the saved runs")
     args = p.parse_args(argv)
     results = ROOT / "benchmarks" / "results"
-    if args.plot_only and not any(pathlib.Path(args.runs_dir).glob("*.json")):
-        saved = json.loads((results / "locomotion.json").read_text())
-        for algos in saved["runs"].values():
-            for rs in algos.values():
-                for r in rs:
-                    write_json(os.path.join(args.runs_dir, f"{r['algo']}_{r['task']}_{r['seed']}.json"), r)
-    if not args.plot_only:
+    if args.plot_only:
+        restore_runs(args.runs_dir, results / "locomotion.json",
+                     lambda saved: [r for algos in saved["runs"].values() for rs in algos.values() for r in rs])
+    else:
         for task in args.tasks:
             for algo in args.algos:
                 for seed in args.seeds:
-                    if not os.path.exists(os.path.join(args.runs_dir, f"{algo}_{task}_{seed}.json")):
+                    if not run_file(args.runs_dir, algo, task, seed).exists():
                         train_one(algo, task, seed, args.runs_dir)
     runs = load_runs(args.runs_dir)
     write_table(runs, results)
