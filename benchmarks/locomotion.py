@@ -17,8 +17,8 @@ random starts (``PRNGKey(10_000 + seed)``, 1000-step episodes), as the examples 
   gradient clip 1, value-loss weight 4 on rl_games' halved MSE, observation normalisation, ELU MLPs [128, 64, 32]
   for the policy and the value) for 10x SHAC's env steps on the cheetah (41M, the issue's goal) and SHAC's on the
   hopper (16.4M). What Brax's PPO does otherwise than rl_games': separate policy and value networks (rl_games shares
-  a trunk), a tanh-normal policy (a clipped Gaussian), no value normalisation, no bounds loss. Its curve is Brax's own deterministic evaluator
-  (16 environments); its wall-clock includes compilation and those evaluations.
+  a trunk), a tanh-normal policy (a clipped Gaussian), no value normalisation, no bounds loss. Its curve is Brax's own
+  deterministic evaluator (16 environments); its wall-clock includes compilation and those evaluations.
 
 SHAC and BPTT runs checkpoint every epoch and resume where a killed benchmark left them; a PPO run is redone from its
 start if killed (Brax's trainer keeps no resumable state here). Each finished run is

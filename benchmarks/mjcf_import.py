@@ -92,7 +92,8 @@ def main():
             rows[name] = {"refused": str(err)}
         print(name, rows[name])
     write_json(RESULTS / "mjcf_import.json", rows, indent=2)
-    lines = ["| model | joints | integrator | M | bias | qacc | 100-step rollout |", "|---|---|---|---:|---:|---:|---:|"]
+    lines = ["| model | joints | integrator | M | bias | qacc | 100-step rollout |",
+             "|---|---|---|---:|---:|---:|---:|"]
     for name, r in rows.items():
         if "refused" in r:
             lines.append(f"| {name} | refused: its target is a second chain hanging from the world | | | | | |")

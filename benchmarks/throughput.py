@@ -186,7 +186,8 @@ def acrobot_main(batches, quick, path):
                        gradient_steps_per_s=B * STEPS / tg)
             out["rows"].append(row)
             if B == 1024:
-                out["compile"].append(dict(integrator=integ, engine=name, forward_first_call_s=cf, gradient_first_call_s=cg))
+                out["compile"].append(dict(integrator=integ, engine=name, forward_first_call_s=cf,
+                                           gradient_first_call_s=cg))
             print(f"  {integ:17s} {name:12s} B={B:5d} fwd {row['forward_steps_per_s']:.3g}/s "
                   f"grad {row['gradient_steps_per_s']:.3g}/s (first calls {cf:.2f} s, {cg:.2f} s)", flush=True)
     for integ, mjname in (("SemiImplicitEuler", "Euler"), ("RK4", "RK4")):
@@ -490,7 +491,8 @@ def legged_main(batch, path):
         row |= {"lagrange_us_per_env_step": min(row["lagrange_us_per_env_step"], t / (batch * LEGGED_T) * 1e6),
                 "mujoco_c_us_per_env_step": tm / (batch * LEGGED_T) * 1e6,
                 "mujoco_c_1thread_us_per_env_step": tm1 / (batch * LEGGED_T) * 1e6,
-                "forward_speedup_over_mujoco_c (target >= 5)": tm / t, "forward_speedup_over_mujoco_c_1thread": tm1 / t1,
+                "forward_speedup_over_mujoco_c (target >= 5)": tm / t,
+                "forward_speedup_over_mujoco_c_1thread": tm1 / t1,
                 "max_abs_qT_difference_to_mujoco": float(np.max(np.abs(np.asarray(engines["lagrange"][0](*a)[0])
                                                                        - mj()[:, -1, 1 : 1 + chain.n])))}
         out["rows"].append(row)

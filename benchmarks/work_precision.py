@@ -180,7 +180,8 @@ def fastest_table(rows, problem, levels=(1e-2, 1e-4, 1e-6, 1e-8, 1e-10)):
                 continue
             b1 = min(ok, key=lambda r: r["time_batch1_s"])
             bb = min(ok, key=lambda r: r["time_batch1024_s"])
-            cells.append(f"{b1['config']} {b1['time_batch1_s'] * 1e3:.3g} ms / {bb['config']} {bb['time_batch1024_s']:.3g} s")
+            cells.append(f"{b1['config']} {b1['time_batch1_s'] * 1e3:.3g} ms / "
+                         f"{bb['config']} {bb['time_batch1024_s']:.3g} s")
         lines.append(f"| {lev:.0e} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -197,18 +198,21 @@ def plot(rows, problem, ref, path):
         name = f"{r['engine']} {r['config'].split(' ')[0]}" + (" (adaptive)" if kind == "adaptive" else "")
         groups.setdefault(name, []).append(r)
     markers = {"lagrange": "o", "brax": "s", "mujoco": "^", "mjx": "D"}
-    for (name, rs), color in zip(sorted(groups.items()), matplotlib.colormaps["tab20"](np.linspace(0, 1, max(len(groups), 2)))):
+    for (name, rs), color in zip(sorted(groups.items()),
+                                 matplotlib.colormaps["tab20"](np.linspace(0, 1, max(len(groups), 2)))):
         rs = [r for r in rs if np.isfinite(r["final_state_error"])]
         if not rs:
             continue
         rs.sort(key=lambda r: r["time_batch1_s"])
         ls = "--" if "adaptive" in name else "-"
-        for i, (tkey, ekey) in enumerate([("time_batch1_s", "final_state_error"), ("time_batch1024_s", "final_state_error"),
+        for i, (tkey, ekey) in enumerate([("time_batch1_s", "final_state_error"),
+                                          ("time_batch1024_s", "final_state_error"),
                                           ("time_batch1_s", "energy_error"), ("time_batch1024_s", "energy_error")]):
             ax = axes[i // 2][i % 2]
             ax.loglog([r[tkey] for r in rs], [max(r[ekey], 1e-16) for r in rs], ls, marker=markers[name.split()[0]],
                       color=color, label=name if i == 0 else None, ms=4)
-    titles = ["final-state error, batch 1", "final-state error, batch 1024", "energy error, batch 1", "energy error, batch 1024"]
+    titles = ["final-state error, batch 1", "final-state error, batch 1024", "energy error, batch 1",
+              "energy error, batch 1024"]
     for ax, title in zip(axes.flat, titles):
         ax.axhline(ref["self_error"], color="grey", lw=0.8, ls=":")
         ax.set(title=title, xlabel="wall time for a 10 s rollout [s]", ylabel="error")

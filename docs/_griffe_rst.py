@@ -53,7 +53,7 @@ def _roles(obj: griffe.Object, text: str) -> str:
 
 def _cells(line: str, spans: list[tuple[int, int]]) -> list[str]:
     cells = []
-    for k, (start, end) in enumerate(spans):
+    for k, (start, _end) in enumerate(spans):
         stop = None if k == len(spans) - 1 else spans[k + 1][0]
         cells.append(line[start:stop].strip())
     return cells
@@ -99,7 +99,8 @@ def _tables(text: str) -> str:
             i += 1
             continue
         if len(borders) >= 3:
-            header = _cells(" ".join(lines[borders[0] + 1: borders[1]]), spans) if borders[1] == borders[0] + 2 else None
+            header = (_cells(" ".join(lines[borders[0] + 1: borders[1]]), spans) if borders[1] == borders[0] + 2
+                      else None)
             body = lines[borders[1] + 1: borders[-1]]
         else:
             header, body = None, lines[borders[0] + 1: borders[-1]]

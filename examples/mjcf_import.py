@@ -31,7 +31,7 @@ TURN = np.array([0.0, np.pi, 0.0])  # the task counts the first pole from hangin
 
 
 def scaled(chain, theta):
-    """``chain`` with link masses and inertias times ``exp(theta[:n])`` (a density guess), damping ``exp(theta[n:])``."""
+    """``chain`` with masses and inertias times ``exp(theta[:n])`` (a density guess), damping ``exp(theta[n:])``."""
     return Chain([dataclasses.replace(lk, mass=lk.mass * jnp.exp(theta[i]), inertia=lk.inertia * jnp.exp(theta[i]),
                                       damping=jnp.exp(theta[chain.n + i])) for i, lk in enumerate(chain.links())],
                  gravity=chain.gravity)
@@ -50,7 +50,8 @@ def main(path, seed):
     theta0 = np.log(np.r_[np.full(chain.n, 2.0), np.full(chain.n, 0.3)]).astype(np.float32)
     fit = identify(lambda th: scaled(chain, th), theta0, states, controls, dt, solver, iterations=80)
     for name, got, true in (("masses", fit.chain.mass, chain.mass), ("damping", fit.chain.damping, chain.damping)):
-        print(f"{name}: {np.round(got, 5)}, model's {np.round(true, 5)}, relative error {np.max(abs(got / true - 1)):.1e}")
+        print(f"{name}: {np.round(got, 5)}, model's {np.round(true, 5)}, "
+              f"relative error {np.max(abs(got / true - 1)):.1e}")
     links = [dataclasses.replace(lk, offset=lk.offset - t) for lk, t in zip(fit.chain.links(), TURN)]
     task = DoubleCartpole(Chain(links, gravity=fit.chain.gravity), upright=1.0, noise=0.05)  # 500 steps, 5 s
     config = CEAPGConfig(num_candidates=8, num_elites=3, iterations=60, apg_steps=25, episodes=2, lr_start=1e-2,
@@ -61,7 +62,7 @@ def main(path, seed):
     print(f"balance for 5 s: return {float(returns.mean()):.0f} of 5000, {int(held.sum())}/16 held (lagrange)")
     act = jax.jit(lambda obs, h, t: policy(normalizer(obs), h, t == 0))
     held_mj = 0
-    for episode in range(8):  # the same policy driving MuJoCo on the original model
+    for _episode in range(8):  # the same policy driving MuJoCo on the original model
         x, h, met = rng.uniform(-0.05, 0.05, 2 * chain.n), policy.initial_state(), False
         for t in range(task.horizon):
             obs = task.observe(TaskState(jnp.asarray(x[: chain.n] + TURN, jnp.float32), jnp.asarray(x[chain.n:])))

@@ -10,11 +10,10 @@ this folding itself for floats (``0 * x`` is not ``0`` when ``x`` is ``inf`` or 
 from __future__ import annotations
 
 import math
-from typing import Union
 
 import jax.numpy as jnp
 
-Scalar = Union[float, jnp.ndarray]
+Scalar = float | jnp.ndarray
 
 
 def is_const(x) -> bool:
@@ -62,10 +61,10 @@ def negated(a: Scalar) -> Scalar:
 
 
 def neg(a: Scalar) -> Scalar:
-    """``-a``, a run-time ``a`` emitted as ``a * -1.0`` (the same value: multiplying by -1 is exact). A sign that reaches
-    XLA inside a fused loop, as a ``negate`` or as this multiplication, can cost the loop its vectorization on the CPU
-    (``python -m research.xla_vectorization``: the cartpole's closed form 1.5-1.9x slower with one), so
-    the relative-angle derivation keeps its signs symbolic (:func:`negated`); this is the fallback."""
+    """``-a``, a run-time ``a`` emitted as ``a * -1.0`` (the same value: multiplying by -1 is exact). A sign that
+    reaches XLA inside a fused loop, as a ``negate`` or as this multiplication, can cost the loop its vectorization on
+    the CPU (``python -m research.xla_vectorization``: the cartpole's closed form 1.5-1.9x slower with one), so the
+    relative-angle derivation keeps its signs symbolic (:func:`negated`); this is the fallback."""
     if is_const(a):
         return float(-a)
     if isinstance(a, _Neg):

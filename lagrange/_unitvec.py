@@ -65,7 +65,6 @@ class Geometry:
     """
 
     def __init__(self, chain: Chain, q, qd, absolute=frozenset()):
-        import math
 
         import jax.numpy as jnp
 
@@ -92,8 +91,8 @@ class Geometry:
         self.flipped = frozenset(i for i, sense in enumerate(chain.senses) if sense < 0)
         self._trig: dict = {}
         # positions of every joint origin and centre of mass: lists of (coef, qk, kind, angle). A link's frame is at
-        # phi_a + off (a: its angle variable, off: the static sum of the frame offsets), so a vector
-        # c_d d + c_e e of the link's frame is (c_d cos off - c_e sin off) d(phi_a) + (c_d sin off + c_e cos off) e(phi_a).
+        # phi_a + off (a: its angle variable, off: the static sum of the frame offsets), so a vector c_d d + c_e e of
+        # the link's frame is (c_d cos off - c_e sin off) d(phi_a) + (c_d sin off + c_e cos off) e(phi_a).
         off = chain.frame_offsets()
         normal = chain.com_normal
         attach = {i: k for k, i in enumerate(chain.attached)}

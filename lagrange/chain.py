@@ -13,9 +13,9 @@ Conventions (see also the docs' "Conventions" page):
   a parent (branches) and several may hang from the world (a forest).
 - Link ``i`` starts at its ``attach`` point in its parent's frame, by default the parent's tip
   ``(0, -length_parent)`` (the world's origin for a link of the world): ``p_i = p_parent + l_parent d(phi_parent)``.
-- ``joint="revolute"``: ``phi_i = phi_parent + q_i`` (``- q_i`` for a joint of ``sense=-1``). ``joint="prismatic"``: ``phi_i = phi_parent`` and the frame
-  slides by ``q_i`` along ``e(phi_parent + axis)``; a prismatic joint of the world with ``axis=0`` is a cart on the x
-  axis.
+- ``joint="revolute"``: ``phi_i = phi_parent + q_i`` (``- q_i`` for a joint of ``sense=-1``). ``joint="prismatic"``:
+  ``phi_i = phi_parent`` and the frame slides by ``q_i`` along ``e(phi_parent + axis)``; a prismatic joint of the world
+  with ``axis=0`` is a cart on the x axis.
 - ``offset`` (static, default 0) turns a link's frame against its parent's at ``q = 0``:
   ``phi_i = phi_parent + offset_i (+ q_i)``, so a revolute joint's zero need not hang along its parent (an upright
   link is ``offset = pi``).
@@ -43,11 +43,10 @@ one that is singular only at some configurations is reported by
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import equinox as eqx
 import jax
-import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
@@ -157,7 +156,8 @@ class Link(eqx.Module):
             try:
                 lo, hi = (float(x) for x in control_range)
             except (TypeError, ValueError) as err:
-                raise TypeError(f"Link.control_range must be a pair (lo, hi) of numbers or None, got {control_range!r}") from err
+                raise TypeError("Link.control_range must be a pair (lo, hi) of numbers or None, "
+                                f"got {control_range!r}") from err
             if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
                 raise ValueError(f"Link.control_range must be finite with lo < hi, got {control_range!r}")
             if gear is None:
@@ -165,8 +165,8 @@ class Link(eqx.Module):
             control_range = (lo, hi)
         if parent is not None:
             if isinstance(parent, (bool, np.bool_)) or not isinstance(parent, (int, np.integer)) or parent < WORLD:
-                raise ValueError(f"Link.parent must be None (the link listed before it), -1 (the world) or the index of "
-                                 f"a link listed before it, got {parent!r}")
+                raise ValueError(f"Link.parent must be None (the link listed before it), -1 (the world) or the index "
+                                 f"of a link listed before it, got {parent!r}")
             parent = int(parent)
         if isinstance(sense, (bool, np.bool_)) or sense not in (1, -1):
             raise ValueError(f"Link.sense must be 1 or -1, got {sense!r}")
@@ -325,9 +325,8 @@ class Chain(eqx.Module):
         self.mass = stack([lk.mass for lk in links], dtype)
         self.length = stack([lk.length for lk in links], dtype)
         self.com = stack([value_of(lk.length) / 2 if lk.com is None else lk.com for lk in links], dtype)
-        self.inertia = stack(
-            [value_of(lk.mass) * value_of(lk.length) ** 2 / 12 if lk.inertia is None else lk.inertia for lk in links], dtype
-        )
+        self.inertia = stack([value_of(lk.mass) * value_of(lk.length) ** 2 / 12 if lk.inertia is None else lk.inertia
+                              for lk in links], dtype)
         self.joints = tuple(lk.joint for lk in links)
         self.axes = tuple(float(lk.axis) for lk in links)
         self.offsets = tuple(float(lk.offset) for lk in links)

@@ -17,7 +17,8 @@ the task's, in ``[-1, 1]`` before its gear.
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
+from typing import NamedTuple
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp

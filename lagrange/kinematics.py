@@ -9,7 +9,6 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-import math
 
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
@@ -26,9 +25,9 @@ class Frames(NamedTuple):
     ``origin[i]``: (x, z) of joint i; ``com[i]``: (x, z) of link i's centre of mass;
     ``tip``: (x, z) of the end of the last link; ``angle_rate[i]``: phi_i's time derivative
     (``None`` when velocities were not asked for); ``revolute_before[i]``: the revolute joints on the path
-    from the world to link i, i included (the rows of phi_i's Jacobian, each joint's ``sense``); ``tips[i]``: (x, z) of the end
-    of link i (``length`` along its direction from its joint), or ``None`` when not asked for; ``points[k]``: (x, z)
-    of the ``k``-th point asked for.
+    from the world to link i, i included (the rows of phi_i's Jacobian, each joint's ``sense``); ``tips[i]``: (x, z) of
+    the end of link i (``length`` along its direction from its joint), or ``None`` when not asked for; ``points[k]``:
+    (x, z) of the ``k``-th point asked for.
     """
 
     origin: list

@@ -9,7 +9,7 @@ headless. Not imported by ``import lagrange`` (matplotlib is only loaded when a 
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import jax
 import jax.numpy as jnp

@@ -16,7 +16,8 @@ from __future__ import annotations
 import abc
 import dataclasses
 import json
-from typing import Any, Callable, NamedTuple
+from typing import Any, NamedTuple
+from collections.abc import Callable
 
 import jax
 

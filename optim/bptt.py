@@ -4,7 +4,8 @@ passes its own ``objective`` instead of patching anything."""
 
 from __future__ import annotations
 
-from typing import Any, Callable, NamedTuple
+from typing import Any, NamedTuple
+from collections.abc import Callable
 
 import equinox as eqx
 import jax

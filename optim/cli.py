@@ -40,7 +40,8 @@ import argparse
 import dataclasses
 import os
 import sys
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 import jax
 import numpy as np

@@ -15,7 +15,8 @@ its result (and a warning) says at which iteration, on which windows and with wh
 from __future__ import annotations
 
 import warnings
-from typing import Callable, NamedTuple
+from typing import NamedTuple
+from collections.abc import Callable
 
 import equinox as eqx
 import jax

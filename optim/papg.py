@@ -10,7 +10,8 @@ over devices exactly like CE-APG candidates; the result is the run with the best
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable, NamedTuple
+from typing import NamedTuple
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp

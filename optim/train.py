@@ -7,7 +7,8 @@ import dataclasses
 import hashlib
 import os
 import time
-from typing import Any, Callable, NamedTuple
+from typing import Any, NamedTuple
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp

@@ -51,7 +51,8 @@ differentiated.
 from __future__ import annotations
 
 from types import SimpleNamespace
-from typing import Callable, NamedTuple
+from typing import NamedTuple
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp

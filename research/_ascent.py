@@ -1,5 +1,6 @@
 """Gradient ascent that keeps the best point it has seen: the optimiser shared by the trajectory refinements
-(``refine_swingup``, ``swingup_lqr``), whose objectives are chaotic enough that the last iterate is often not the best."""
+(``refine_swingup``, ``swingup_lqr``), whose objectives are chaotic enough that the last iterate is often not the
+best."""
 
 from __future__ import annotations
 

@@ -121,7 +121,8 @@ def main(argv=None):
         state, metrics = trainer.update(state)
         if it in args.at:
             rows[-1]["best_fitness"] = float(metrics["best_return"])
-    name = f"apg_gradient_norms_{args.task}{bodies_suffix(args.bodies)}_{args.protocol}{'_' + args.tag if args.tag else ''}"
+    name = (f"apg_gradient_norms_{args.task}{bodies_suffix(args.bodies)}_{args.protocol}"
+            f"{'_' + args.tag if args.tag else ''}")
     out = os.path.join(REPO, "research", "results", name + ".json")
     write_json(out, {"config": {k: getattr(config, k) for k in config.__dataclass_fields__}, "seed": args.seed,
                      "task": args.task, "bodies": args.bodies, "seconds": time.perf_counter() - t0, "rows": rows},

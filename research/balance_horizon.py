@@ -1,6 +1,7 @@
 """Can BPTT learn to *balance*? CE-APG on the balance-only task at several episode lengths.
 
-    python -m research.balance_horizon                      # double cartpole, H = 100 ... 500 and a curriculum (about 15 minutes on one device)
+    python -m research.balance_horizon                      # double cartpole, H = 100 ... 500 and a curriculum
+                                                            # (about 15 minutes on one device)
     python -m research.balance_horizon --task acrobot       # the same question for the acrobot
     python -m research.balance_horizon --quick              # two horizons, 5 iterations: a pipeline check
     python -m research.balance_horizon --task acrobot --bodies brax_v1   # on the authors' Brax v1 bodies
@@ -9,12 +10,11 @@ The swing-up tasks end in a balance, so a learner that cannot learn the balance 
 learn the swing-up either. This script takes the swing-up out: every training episode starts balanced
 upright (``CEAPGConfig.upright_starts = 1``) and lasts ``H`` control steps, and CE-APG runs its laptop
 protocol for ``--iterations`` iterations at each ``H``; a last run spends the same iterations on a
-curriculum (``CEAPGConfig.warmup_horizons``): equal stages at each shorter ``H`` in turn, then 500. The final policy is then evaluated on 16 upright
-starts twice: over ``H`` steps (what it was trained on) and over the paper's 500 steps (what the task
-asks). "balanced" is the task's definition (every link within 0.2 rad of upright over the final 20 %
-of the episode), on the evaluation's own length. For a cart task the cart's mean ``|x|`` at step 500
-shows drift. Writes ``research/results/balance_horizon_<task>.json`` (``..._<task>_brax_v1.json`` for ``--bodies
-brax_v1``).
+curriculum (``CEAPGConfig.warmup_horizons``): equal stages at each shorter ``H`` in turn, then 500. The final policy is
+then evaluated on 16 upright starts twice: over ``H`` steps (what it was trained on) and over the paper's 500 steps
+(what the task asks). "balanced" is the task's definition (every link within 0.2 rad of upright over the final 20 % of
+the episode), on the evaluation's own length. For a cart task the cart's mean ``|x|`` at step 500 shows drift. Writes
+``research/results/balance_horizon_<task>.json`` (``..._<task>_brax_v1.json`` for ``--bodies brax_v1``).
 """
 
 from __future__ import annotations

@@ -12,10 +12,10 @@ The system is the double cartpole on the Brax v1 bodies as ``lagrange.systems.BR
 them, written as a Brax v1 config by this script: a 10.47 kg cart sliding in x, two 5.02 kg capsule poles hinged
 0.3 m either side of their centres, inertias left to Brax v1's default (1 kg m^2), joints of stiffness 30000 and
 spring damping 500, a 1000 N thruster, dt 0.01 s in 12 substeps: the values of the authors' fork's
-``inverted_double_pendulum_swingup``. With zero force, released at rest from a few poses (swinging, and falling from near upright
-into a fast swing), it integrates 500 control steps (5 s) and reports the mechanical energy (kinetic, translational
-and rotational, plus potential) against its start, as a fraction of the energy the motion has above hanging still,
-and the turns the first pole makes.
+``inverted_double_pendulum_swingup``. With zero force, released at rest from a few poses (swinging, and falling from
+near upright into a fast swing), it integrates 500 control steps (5 s) and reports the mechanical energy (kinetic,
+translational and rotational, plus potential) against its start, as a fraction of the energy the motion has above
+hanging still, and the turns the first pole makes.
 The exact chain conserves energy to RK4's error (``tests/lagrange/test_stability.py``: relative 1e-6 over such runs in
 float64). Writes ``research/results/brax_v1_energy.json``.
 """
@@ -47,7 +47,8 @@ bodies { name: "pole2" mass: %(pole)r
   frozen { position { x: 0 y: 1 z: 0 } rotation { x: 1 y: 0 z: 1 } } }
 joints { name: "hinge" stiffness: 30000.0 parent: "cart" child: "pole" child_offset { z: -0.3 }
   rotation { z: 90.0 } limit_strength: 0.0 spring_damping: 500.0 angle_limit { min: -360.0 max: 360.0 } }
-joints { name: "hinge2" stiffness: 30000.0 parent: "pole" child: "pole2" parent_offset { z: 0.3 } child_offset { z: -0.3 }
+joints { name: "hinge2" stiffness: 30000.0 parent: "pole" child: "pole2" parent_offset { z: 0.3 } \
+child_offset { z: -0.3 }
   rotation { z: 90.0 } limit_strength: 0.0 spring_damping: 500.0 angle_limit { min: -360.0 max: 360.0 } }
 forces { name: "cart_thruster" body: "cart" strength: 1000.0 thruster {} }
 collide_include {}
@@ -55,7 +56,7 @@ gravity { z: -9.81 }
 defaults { angles { name: "hinge" angle { x: 180.0 y: 0.0 z: 0.0 } } }
 dt: 0.01
 substeps: 12
-""" % {"cart": CART_MASS, "pole": POLE_MASS}
+""" % {"cart": CART_MASS, "pole": POLE_MASS}  # noqa: UP031
 
 # (name, joint angles offset from hanging [rad]): released at rest, so Brax v1's bodies start exactly on its joints
 STARTS = [

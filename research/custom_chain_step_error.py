@@ -70,7 +70,8 @@ def main(argv=None):
     else:
         print(f"1. the trained policy's episodes: max |qd| {np.abs(qd).max():.1f} rad/s")
         for s, e in interval_errors(chain, dt, q, qd, u, (1, 2, 4), 1e-12).items():
-            print(f"   RK4 x{s}: median {np.median(e):.1e}, 99th percentile {np.percentile(e, 99):.1e}, max {e.max():.1e}")
+            print(f"   RK4 x{s}: median {np.median(e):.1e}, 99th percentile {np.percentile(e, 99):.1e}, "
+                  f"max {e.max():.1e}")
     print("2. random states, median / max one-interval error of 30")
     rng = np.random.default_rng(0)
     for bound in (2, 5, 10, 20, 40, 80):

@@ -9,12 +9,13 @@ loosely. This script asks whether that is the learner or the motion: it loads a 
 issue 30 are refused) and, for each of the 16 evaluation starts of the paper tables, adds a free
 time-varying offset to the policy's action, ``a_t = tanh(atanh(pi(o_t, h_t)) + z_t)``, the policy's feedback kept,
 and maximises that episode's return over ``z`` (T x m) by Adam through ``task.step`` (``z = 0`` is the policy's own
-episode up to the round-off of ``tanh(atanh(a))``, which the chaotic swing-up may amplify: both returns are reported). The result is what a controller that starts as this policy can reach *from this start*
-nearby: a local optimum around the learnt swing-up, not a global bound (another swing-up could be better).
-The best ``z`` seen is kept, so the refined return is never below that of ``z = 0``. Reports per seed the policy's and
-the refined returns, how many episodes are ``balanced`` before and after, and the refined episodes' *arrival*
-(the first step from which every link stays within 0.2 rad of upright to the end) with the penalty
-``10 T - return`` spent before and after it. Writes ``research/results/refine_swingup_<runs folder>.json``.
+episode up to the round-off of ``tanh(atanh(a))``, which the chaotic swing-up may amplify: both returns are reported).
+The result is what a controller that starts as this policy can reach *from this start* nearby: a local optimum around
+the learnt swing-up, not a global bound (another swing-up could be better). The best ``z`` seen is kept, so the refined
+return is never below that of ``z = 0``. Reports per seed the policy's and the refined returns, how many episodes are
+``balanced`` before and after, and the refined episodes' *arrival* (the first step from which every link stays within
+0.2 rad of upright to the end) with the penalty ``10 T - return`` spent before and after it. Writes
+``research/results/refine_swingup_<runs folder>.json``.
 """
 
 from __future__ import annotations
@@ -54,7 +55,8 @@ def rollout(task, policy, norm, s0, z):
 
 
 def refine(task, policy, norm, starts, *, steps: int, learning_rate: float):
-    """Adam (cosine-decayed ``learning_rate`` -> 1 %) on each start's offset; ``(best z, best return, start return)``."""
+    """Adam (cosine-decayed ``learning_rate`` -> 1 %) on each start's offset;
+    ``(best z, best return, start return)``."""
     z0 = jnp.zeros((len(starts.q), task.horizon, task.action_size), starts.q.dtype)
 
     def one_start(z, s0):

@@ -65,7 +65,8 @@ def swing(task, logits):
 
 
 def swing_loss(task, logits, weight: float):
-    """What the optimiser minimises: minus the swing-up's return plus ``weight (|pose|^2 + 0.05 |speeds|^2)`` at its end."""
+    """What the optimiser minimises: minus the swing-up's return plus ``weight (|pose|^2 + 0.05 |speeds|^2)`` at its
+    end."""
     ret, pose, speeds = swing(task, logits)
     return -ret + weight * (jnp.sum(pose**2) + 0.05 * jnp.sum(speeds**2))
 

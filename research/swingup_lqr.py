@@ -20,8 +20,9 @@ best seen is kept). Reported per ``T`` and CEM seed: the return (true, over the 
 the swing-up is to the +-0.01 reset noise; a policy would add feedback). Each controller is re-run in float64 too:
 the best is the highest return balanced in both precisions. The best controller's offsets are saved so
 it can be rerun (``make_controller``), with the actions it applies (for plotting: replayed open loop they part from
-the episode once round-off grows, since the upright chain is unstable without the feedback). This finds balanced swing-ups and their returns, a lower bound on what
-the physics allows; it is not an upper bound. Writes ``research/results/swingup_lqr_<task>.json``.
+the episode once round-off grows, since the upright chain is unstable without the feedback). This finds balanced
+swing-ups and their returns, a lower bound on what the physics allows; it is not an upper bound. Writes
+``research/results/swingup_lqr_<task>.json``.
 """
 
 from __future__ import annotations
@@ -216,7 +217,8 @@ def main(argv=None):
                     iterations=iterations, refine_steps=refine_steps, learning_rate=lr)
             rows.append(r)
             print(f"T = {T} ({T * task.dt:.2f} s), seed {seed}: CEM {r['cem_return']:.1f} -> refined "
-                  f"{r['return']:.1f} ({'balanced' if r['balanced'] else 'not balanced'}; float64 {r['return_float64']:.1f}, "
+                  f"{r['return']:.1f} ({'balanced' if r['balanced'] else 'not balanced'}; "
+                  f"float64 {r['return_float64']:.1f}, "
                   f"{'balanced' if r['balanced_float64'] else 'not balanced'}); from the 16 noisy starts "
                   f"{r['noisy_starts_mean_return']:.0f}, {r['noisy_starts_balanced']} balanced; {r['seconds']:.0f} s",
                   flush=True)

@@ -12,9 +12,9 @@ LQR for ``Q = diag(1 on q, 0.01 on qd)`` and ``R = r`` and measures the basin (a
 ``d`` rad at one joint at a time (joint 1 leans the whole straight chain, a later joint bends it there),
 starting at rest. A start "recovers" when, after ``--steps`` control steps, every coordinate is within 1e-3
 (rad, m) and every velocity within 1e-3 of upright at rest. Reported: per joint, the largest ``d`` on the grid
-up to which every start recovers (``every_lean_recovered``: the whole grid did); the closed-loop spectral radius of the linear model (< 1: stable); the gain.
-A large ``r`` gives the smallest gains (least saturation); LQR is one controller, not the best possible one, so
-the numbers are a lower bound on what any controller could recover from.
+up to which every start recovers (``every_lean_recovered``: the whole grid did); the closed-loop spectral radius of the
+linear model (< 1: stable); the gain. A large ``r`` gives the smallest gains (least saturation); LQR is one controller,
+not the best possible one, so the numbers are a lower bound on what any controller could recover from.
 Writes ``research/results/upright_basin_<task>.json`` (``..._<task>_brax_v1.json`` for ``--bodies brax_v1``).
 """
 

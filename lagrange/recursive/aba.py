@@ -6,8 +6,8 @@ Inward, ``IA_i = I_i + sum_c X_c^T Ia_c X_c``, ``pA_i = v_i x* I_i v_i + sum_c X
 ``pa_i = pA_i + Ia_i c_i + U_i u_i / D_i``; outward, ``a'_i = X_i a_{i-1} + c_i``, ``qdd_i = (u_i - U_i . a'_i) / D_i``,
 ``a_i = a'_i + S_i qdd_i``. The two passes are scans over the links, each step's inputs and outputs separate arrays of
 the batch's shape; on a tree they run segment by segment, a branch point summing its child segments' articulated
-inertias and bias forces (:class:`~lagrange.recursive.tree.Topology`). Armature and an implicit-damping term ``h damping_i`` add to ``D_i``, which is adding them to
-``M_ii``.
+inertias and bias forces (:class:`~lagrange.recursive.tree.Topology`). Armature and an implicit-damping term
+``h damping_i`` add to ``D_i``, which is adding them to ``M_ii``.
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """The recursive Newton-Euler algorithm: bias, gravity and inverse dynamics forces in O(n).
 
 ``a_i = X_i a_{i-1} + S_i qdd_i + c_i``, ``f_i = I_i a_i + v_i x* I_i v_i``, ``tau_i = S_i . sum_{k in i's subtree}
-X_{i<-k}^T f_k``, with gravity as the base acceleration ``a_0 = (0, 0, g)``; the accelerations are sums along each link's
-path from the world and the forces sums over each link's subtree (cumulative sums on a serial chain,
+X_{i<-k}^T f_k``, with gravity as the base acceleration ``a_0 = (0, 0, g)``; the accelerations are sums along each
+link's path from the world and the forces sums over each link's subtree (cumulative sums on a serial chain,
 :class:`~lagrange.recursive.tree.Topology`), on the per-link arrays of
 :class:`~lagrange.recursive.kinematics.LinkKinematics`.
 """

@@ -113,8 +113,9 @@ def make_trainer(config, task: AbstractTask, actor: Actor) -> Trainer:
 
         # 1. actor: one clipped Adam step on the window's loss
         def loss_fn(actor):
-            return actor_loss(actor, state.target_critic if config.use_critic else None, state.normalizer, task, state.env_state, state.progress,
-                              state.ep_return, key, short_horizon=h, horizon=T, gamma=config.gamma)
+            return actor_loss(actor, state.target_critic if config.use_critic else None, state.normalizer, task,
+                              state.env_state, state.progress, state.ep_return, key, short_horizon=h, horizon=T,
+                              gamma=config.gamma)
 
         (loss, win), g = eqx.filter_value_and_grad(loss_fn, has_aux=True)(state.actor)
         g, gnorm = clip_grad_norm(g, config.actor_grad_norm)
@@ -154,7 +155,8 @@ def make_trainer(config, task: AbstractTask, actor: Actor) -> Trainer:
         (critic, critic_opt, critic_bad), value_losses = jax.lax.scan(
             critic_pass, (state.critic, state.critic_opt, jnp.asarray(0, jnp.int32)), None,
             config.critic_iterations if config.use_critic else 0)
-        value_loss = value_losses[-1] if config.critic_iterations and config.use_critic else jnp.asarray(jnp.nan, obs_flat.dtype)
+        value_loss = (value_losses[-1] if config.critic_iterations and config.use_critic
+                      else jnp.asarray(jnp.nan, obs_flat.dtype))
 
         # 3. target critic, running statistics
         target = soft_update(state.target_critic, critic, config.target_alpha)

@@ -253,7 +253,8 @@ def test_simulate_wrong_shape_state(which):
         lg.simulate(c, args["q0"], args["qd0"], jnp.zeros((3, 1)), 0.01)
 
 
-@pytest.mark.parametrize("controls", [jnp.zeros(5), jnp.zeros((5, 2)), jnp.zeros((5, 1, 1))], ids=["(5,)", "(5,2)", "(5,1,1)"])
+@pytest.mark.parametrize("controls", [jnp.zeros(5), jnp.zeros((5, 2)), jnp.zeros((5, 1, 1))],
+                         ids=["(5,)", "(5,2)", "(5,1,1)"])
 def test_controls_of_wrong_shape(controls):
     z = jnp.zeros(2)
     with pytest.raises(ValueError, match=r"controls must have shape \(T, 1\)"):

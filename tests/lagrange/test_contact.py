@@ -230,7 +230,8 @@ def test_contact_costs_nothing_where_nothing_can_touch():
     (lambda: PenaltyContact(-1.0, 0, 0, 0), ValueError, r"PenaltyContact\.ke must be finite and > 0"),
     (lambda: PenaltyContact(1.0, -1.0, 0, 0), ValueError, r"PenaltyContact\.kd must be finite and >= 0"),
     (lambda: PenaltyContact(1.0, 0, 0, "a"), TypeError, r"PenaltyContact\.mu must be a real number"),
-    (lambda: PenaltyContact(1.0, 0, 0, 0, ground=float("nan")), ValueError, r"PenaltyContact\.ground must be a finite scalar height in m"),
+    (lambda: PenaltyContact(1.0, 0, 0, 0, ground=float("nan")), ValueError,
+     r"PenaltyContact\.ground must be a finite scalar height in m"),
     (lambda: PenaltyLimits(0.0), ValueError, r"PenaltyLimits\.ke must be finite and > 0"),
     (lambda: Link("revolute", 1.0, range=(1.0, -1.0)), ValueError, r"Link\.range must be finite with lower < upper"),
     (lambda: Link("revolute", 1.0, contacts=[(0.0, 1.0)]), ValueError, r"Link\.contacts\[0\] must be a point \(x, z, "

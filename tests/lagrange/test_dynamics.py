@@ -106,7 +106,7 @@ def test_closed_forms_are_not_trivially_equal():
 SIZES = (1, 2, 3, 4, 7)  # 1-4 links take the relative-angle path, 7 the recursive one (lagrange.recursive)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def chain_results(n):
     """Everything the random-chain tests compare, computed in one compiled call per chain size."""
     for seed in range(100 * n, 100 * n + 100):  # the first seed giving a mix of joint kinds
@@ -200,7 +200,8 @@ def test_control_range_clamps_before_the_gear():
     free = Chain([Link("prismatic", 1.0, gear=2.0), Link("revolute", 0.5, 1.0, gear=3.0)])
     q, qd = jnp.array([0.1, 0.4]), jnp.array([0.3, -0.2])
     for u, clamped in (([3.0, 7.0], [0.5, 7.0]), ([-4.0, -1.0], [-1.0, -1.0]), ([0.2, 1.0], [0.2, 1.0])):
-        assert_close(lg.forward_dynamics(chain, q, qd, jnp.array(u)), lg.forward_dynamics(free, q, qd, jnp.array(clamped)))
+        assert_close(lg.forward_dynamics(chain, q, qd, jnp.array(u)),
+                     lg.forward_dynamics(free, q, qd, jnp.array(clamped)))
     assert chain.control_ranges == ((-1.0, 0.5), None) and free.control_ranges is None
     with pytest.raises(ValueError, match="control_range"):
         Link("revolute", 1.0, 1.0, control_range=(-1.0, 1.0))  # not actuated

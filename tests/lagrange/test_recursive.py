@@ -113,7 +113,8 @@ def test_long_chains_satisfy_equations_of_motion(n):
     assert_close(qdd, jnp.linalg.solve(M, (tau - bias)[..., None])[..., 0], rel=1e-13 * cond, what="qdd vs solve")
     eye = jnp.eye(n)
     cols = jax.jit(jax.vmap(lambda q: jax.vmap(
-        lambda e: recursive.inverse_dynamics(chain, q, 0 * q, e) - recursive.inverse_dynamics(chain, q, 0 * q, 0 * e))(eye)))(q)
+        lambda e: recursive.inverse_dynamics(chain, q, 0 * q, e)
+                  - recursive.inverse_dynamics(chain, q, 0 * q, 0 * e))(eye)))(q)
     assert_close(M, jnp.swapaxes(cols, -1, -2), what="CRBA vs RNEA columns")
     assert_close(M, jnp.swapaxes(M, -1, -2), rel=0, what="symmetry")
 

@@ -117,7 +117,8 @@ def test_semi_implicit_euler_drifts_when_the_mass_matrix_varies():
     tenth is more than 5x that over the first tenth (measured about -0.02 -> -0.4: the chain
     loses energy). In regular (small-amplitude) motion it stays first order: the error over 10
     s falls 10x when dt does."""
-    err = _relative_energy_error(DOUBLE_PENDULUM, (2.0, 1.0), (0.0, 0.0), 1e-3, lg.SemiImplicitEuler(), 100_000, signed=True)
+    err = _relative_energy_error(DOUBLE_PENDULUM, (2.0, 1.0), (0.0, 0.0), 1e-3, lg.SemiImplicitEuler(), 100_000,
+                                 signed=True)
     tenth = len(err) // 10
     first, last = abs(err[:tenth].mean()), abs(err[-tenth:].mean())
     assert last > 5 * first, (first, last)
@@ -169,7 +170,7 @@ def _stress_stats(n, mass, length, q, qd):
     return [np.asarray(x) for x in _stress_fn(n)(mass, length, q, qd)]
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _stress_fn(n):
     base = lg.systems.n_link_pendulum(n)
 

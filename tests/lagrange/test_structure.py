@@ -51,7 +51,8 @@ class Traced:
         self.chain = chain
         n, m = chain.n, chain.m
         args = (chain, jnp.zeros(n), jnp.zeros(n), jnp.zeros(m))
-        closed = jax.make_jaxpr(lambda c, q, qd, u: lg.forward_dynamics(c, q, qd, u if c.m else None, check=False))(*args)
+        closed = jax.make_jaxpr(lambda c, q, qd, u: lg.forward_dynamics(c, q, qd, u if c.m else None,
+                                                                        check=False))(*args)
         self.jaxpr = closed.jaxpr
         self.eqns = live_eqns(self.jaxpr)
         self.counts = collections.Counter(e.primitive.name for e in self.eqns)

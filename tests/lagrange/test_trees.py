@@ -181,7 +181,8 @@ def test_energy_of_a_sprung_tree_is_conserved_at_rk4_order():
 
 
 @pytest.mark.parametrize("link, message", [
-    (dict(parent=3), r"links\[2\]\.parent must be -1 \(the world\) or the index of a link listed before it \(0\.\.1\), got 3"),
+    (dict(parent=3), r"links\[2\]\.parent must be -1 \(the world\) or the index of a link listed before it "
+                     r"\(0\.\.1\), got 3"),
     (dict(parent=2), r"links\[2\]\.parent .* got 2: list every link after its parent"),
 ])
 def test_a_parent_that_is_not_listed_before_is_refused(link, message):

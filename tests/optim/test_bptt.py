@@ -95,8 +95,8 @@ def test_apg_steps_is_the_hand_written_loop(problem, objective):
 
 def test_max_grad_norm_clips_the_gradient_adam_sees(problem):
     """``max_grad_norm`` rescales a gradient longer than it to that norm before Adam: the hand-written loop with the
-    rescaling, and the reported norms are those before clipping. A bound above every norm changes nothing; a bound <= 0 is
-    refused."""
+    rescaling, and the reported norms are those before clipping. A bound above every norm changes nothing; a bound <= 0
+    is refused."""
     _, params, _, _, _ = problem
     norms = np.asarray(_apg(problem).grad_norms)
     clip = float(np.min(norms)) / 2  # every step is clipped (norms measured 83-111)

@@ -65,7 +65,8 @@ def _refuse(mujoco, model, limits: str, contact: str) -> None:
                                   "chain has none: remove them")
     if model.neq and constraints and not off & bit.mjDSBL_EQUALITY:
         raise NotImplementedError(f"from_mjcf: the model has {model.neq} equality constraint(s) ({nm('equality', 0)}); "
-                                  "a serial chain has none: remove them or disable equality (<flag equality=\"disable\"/>)")
+                                  "a serial chain has none: remove them or disable equality "
+                                  "(<flag equality=\"disable\"/>)")
     if np.any(model.body_gravcomp != 0):
         b = int(np.flatnonzero(model.body_gravcomp)[0])
         raise NotImplementedError(f"from_mjcf: {nm('body', b)} has gravcomp {model.body_gravcomp[b]}; remove it")
@@ -84,15 +85,16 @@ def _refuse(mujoco, model, limits: str, contact: str) -> None:
         )
         if not motor:
             raise NotImplementedError(
-                f"from_mjcf: {nm('actuator', a)} is not a motor on a joint (force = gain * ctrl, no dynamics, no bias); "
-                "a chain's actuators are motors: replace it with <motor joint=... gear=...>"
+                f"from_mjcf: {nm('actuator', a)} is not a motor on a joint (force = gain * ctrl, no dynamics, "
+                "no bias); a chain's actuators are motors: replace it with <motor joint=... gear=...>"
             )
         if model.actuator_forcelimited[a]:
             raise NotImplementedError(f"from_mjcf: {nm('actuator', a)} is force-limited; the chain clamps controls "
                                       "(ctrlrange) but not forces: remove forcerange or express it as a ctrlrange")
         if model.actuator_gear[a, 0] * model.actuator_gainprm[a, 0] <= 0:
             raise NotImplementedError(
-                f"from_mjcf: {nm('actuator', a)} has gear * gain = {model.actuator_gear[a, 0] * model.actuator_gainprm[a, 0]}"
+                f"from_mjcf: {nm('actuator', a)} has gear * gain = "
+                f"{model.actuator_gear[a, 0] * model.actuator_gainprm[a, 0]}"
                 "; a chain's gears are > 0: flip the joint's axis or the gear's sign in the model"
             )
     joints = model.actuator_trnid[: model.nu, 0]
@@ -165,7 +167,8 @@ def contact_pairs(mujoco, model) -> list[tuple[int, int]]:
     out = []
     for g1 in range(model.ngeom):
         for g2 in range(g1 + 1, model.ngeom):
-            if not (model.geom_contype[g1] & model.geom_conaffinity[g2] or model.geom_contype[g2] & model.geom_conaffinity[g1]):
+            if not (model.geom_contype[g1] & model.geom_conaffinity[g2]
+                    or model.geom_contype[g2] & model.geom_conaffinity[g1]):
                 continue
             b1, b2 = model.geom_bodyid[g1], model.geom_bodyid[g2]
             w1, w2 = weld[b1], weld[b2]
@@ -407,7 +410,7 @@ def from_mjcf(source, *, limits: str | PenaltyLimits = "raise", contact: str | P
 
 
 def _in_frame(r, theta: float) -> tuple[float, float]:
-    """A plane vector ``r`` as ``(x, z)`` in a frame of angle ``theta``: x along ``e(theta)``, z against ``d(theta)``."""
+    """Plane vector ``r`` as ``(x, z)`` in a frame of angle ``theta``: x along ``e(theta)``, z against ``d(theta)``."""
     return float(r @ _e(theta)), float(-(r @ _d(theta)))
 
 
@@ -423,8 +426,8 @@ def _ground_contacts(mujoco, model, data, last_joint, origin, Z, to2):
     plane = planes[0]
     normal = np.array(data.geom_xmat[plane]).reshape(3, 3)[:, 2]
     if abs(normal @ Z) < 1 - 1e-9:
-        raise NotImplementedError(f"from_mjcf: the ground {nm('geom', plane)} is not level in the chain's plane "
-                                  f"(its normal {normal.round(6).tolist()} is not the plane's up {Z.round(6).tolist()})")
+        raise NotImplementedError(f"from_mjcf: the ground {nm('geom', plane)} is not level in the chain's plane (its "
+                                  f"normal {normal.round(6).tolist()} is not the plane's up {Z.round(6).tolist()})")
     height = float((np.array(data.geom_xpos[plane]) - origin) @ Z)
     weld = model.body_weldid
     touching: dict[int, list] = {}

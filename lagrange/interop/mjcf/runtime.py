@@ -48,9 +48,11 @@ def compile_model(source):
     if isinstance(source, (str, os.PathLike)):
         path = os.fspath(source)
         if not os.path.isfile(path):
-            raise FileNotFoundError(f"from_mjcf: no MJCF file at {path!r} (pass a path, an XML string or a mujoco.MjModel)")
+            raise FileNotFoundError(f"from_mjcf: no MJCF file at {path!r} "
+                                    "(pass a path, an XML string or a mujoco.MjModel)")
         return mujoco.MjModel.from_xml_path(path)
-    raise TypeError(f"from_mjcf: source must be a path, an MJCF string or a mujoco.MjModel, got {type(source).__name__}")
+    raise TypeError("from_mjcf: source must be a path, an MJCF string or a mujoco.MjModel, "
+                    f"got {type(source).__name__}")
 
 
 def mujoco_rollout(source, q0, qd0, controls):

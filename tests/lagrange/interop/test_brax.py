@@ -137,7 +137,8 @@ def test_brax_env_refuses_a_batch_where_one_is_expected():
 
     from lagrange.interop.brax import BraxEnv
 
-    with pytest.raises(TypeError, match=r"BraxEnv task must be a task of lagrange\.tasks \(an AbstractTask\), got None"):
+    with pytest.raises(TypeError, match=r"BraxEnv task must be a task of lagrange\.tasks "
+                                        r"\(an AbstractTask\), got None"):
         BraxEnv(None)
     env = BraxEnv(Cartpole.rods(horizon=5))
     state = env.reset(jax.random.PRNGKey(0))

@@ -62,7 +62,8 @@ def test_positive_hinge_angle_swings_towards_plus_x():
     data.qpos[:] = 0.3
     mujoco.mj_kinematics(model, data)
     # the centre of mass at l/2 along d(0.3) = (sin 0.3, -cos 0.3)
-    np.testing.assert_allclose(data.xipos[1, [0, 2]], 0.5 * np.array([math.sin(0.3), -math.cos(0.3)]), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(data.xipos[1, [0, 2]], 0.5 * np.array([math.sin(0.3), -math.cos(0.3)]), rtol=0,
+                               atol=1e-15)
 
 
 def test_export_errors():

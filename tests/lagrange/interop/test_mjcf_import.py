@@ -199,7 +199,8 @@ def test_trees_match_mujoco_in_free_flight(name):
 def test_trees_are_refused_by_default_naming_contact():
     """By default a model whose geoms can touch the floor is refused, naming the geoms and the way out."""
     for name in ("gymnasium/hopper", "dm_control/cheetah", "brax/walker2d"):
-        with pytest.raises(NotImplementedError, match="geoms can touch \\(geom '(floor|ground)' and geom .*contact=\"ignore\""):
+        with pytest.raises(NotImplementedError,
+                           match="geoms can touch \\(geom '(floor|ground)' and geom .*contact=\"ignore\""):
             from_mjcf(TREES[name], limits="ignore")
     with pytest.raises(ValueError, match=r"contact must be one of \('raise', 'ignore'\)"):
         from_mjcf(TREES["gymnasium/hopper"], contact="penalty")
@@ -320,7 +321,8 @@ REFUSALS = [
      NotImplementedError, "equality 'eq'"),
     ("position servo", _chain_xml(HINGE, model_extra='<actuator><position name="p" joint="j1" kp="10"/></actuator>'),
      NotImplementedError, "actuator 'p' is not a motor"),
-    ("force limit", _chain_xml(HINGE, model_extra='<actuator><motor name="m" joint="j1" forcerange="-1 1"/></actuator>'),
+    ("force limit", _chain_xml(HINGE,
+                               model_extra='<actuator><motor name="m" joint="j1" forcerange="-1 1"/></actuator>'),
      NotImplementedError, "actuator 'm' is force-limited"),
     ("negative gear", _chain_xml(HINGE, model_extra='<actuator><motor name="m" joint="j1" gear="-2"/></actuator>'),
      NotImplementedError, "actuator 'm' has gear \\* gain = -2"),
