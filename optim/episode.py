@@ -64,8 +64,8 @@ def episode(task: AbstractTask, policy, normalizer: Normalizer | None, key: PRNG
         a, h = policy(x, h, t == 0)
         s2 = task.step(s, a)
         r = task.reward(s, a, s2)
-        ended = task.terminated(s2)
-        if isinstance(ended, jax.core.Tracer) or bool(ended):  # a task that can end early: nothing counts after
+        if task.ends_early:  # nothing counts after an early end (a task that cannot traces none of this)
+            ended = task.terminated(s2)
             r = jnp.where(alive, r, jnp.zeros_like(r))
             s2 = jax.tree_util.tree_map(lambda new, old: jnp.where(alive, new, old), s2, s)
             alive = alive & ~ended

@@ -122,8 +122,8 @@ class BraxEnv(Env):
         s2 = self.task.step(s, action)
         reward = jnp.asarray(self.task.reward(s, action, s2), self._dtype)
         t = ps.t + 1
-        ended = self.task.terminated(s2)
-        can_end = isinstance(ended, jax.core.Tracer) or bool(ended)  # a task that can end early (a hopper that fell)
+        can_end = self.task.ends_early  # static: a task that cannot end early traces no termination
+        ended = self.task.terminated(s2) if can_end else None
         if self.terminate_at_horizon:
             done = ((t >= self.task.horizon) | ended if can_end else t >= self.task.horizon).astype(self._dtype)
         else:

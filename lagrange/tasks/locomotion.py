@@ -15,9 +15,9 @@ bodies                 links from capsules at density 1000 kg/m^3 (the MJCF's ``
                        (DFlex's, after ODE); the hopper weighs 15.82 kg, the cheetah 21.18 kg (Gymnasium's: 14)
 root                   a slide along x, a slide along z, a hinge: massless links, then the torso (``q[0:3]``)
 actuation              ``200 a`` on every actuated joint, ``a`` clipped to [-1, 1] (the MJCF gears unused)
-joints                 every dof, root included: armature (hopper 1.0, cheetah 0.1), the joint's own damping plus DFlex's
-                       limit damping 10 (applied at all times), springs towards 0 (cheetah); outside its range a joint
-                       gets ``1000 (bound - q)``
+joints                 every dof, root included: armature (hopper 1.0, cheetah 0.1), the joint's own damping plus
+                       DFlex's limit damping 10 (applied at all times), springs towards 0 (cheetah); outside its range a
+                       joint gets ``1000 (bound - q)``
 contact                ground ``z = 0``, every capsule's two end points with its radius (hopper 8, cheetah 16),
                        :class:`lagrange.PenaltyContact` ke 2e4, kd 1e3, kf 1e3, mu 0.9 (hopper) / 1.0 (cheetah)
 integration            1/60 s control steps of 16 semi-implicit Euler substeps, all forces explicit, the mass matrix
@@ -246,6 +246,7 @@ class Hopper(AbstractLocomotion):
     termination_height: float = eqx.field(static=True, default=-0.45, kw_only=True)
 
     name: ClassVar[str] = "hopper"
+    ends_early: ClassVar[bool] = True
 
     def __check_init__(self):
         self._check()

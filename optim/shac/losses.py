@@ -123,8 +123,8 @@ def actor_loss(actor: Actor, target_critic: Critic, normalizer, task, env_state,
         done = prog >= horizon
         o2 = observe(s2)
         v = jnp.zeros(n, dtype) if target_critic is None else jax.vmap(target_critic)(norm(o2))
-        ended = jax.vmap(task.terminated)(s2)
-        if isinstance(ended, jax.core.Tracer) or bool(jnp.any(ended)):  # a task that can end early
+        if task.ends_early:
+            ended = jax.vmap(task.terminated)(s2)
             # an episode that ended early is worth nothing after; one cut by the time limit is bootstrapped
             done = done | ended
             v = jnp.where(ended | ~jnp.all(jnp.isfinite(o2), axis=-1), jnp.zeros_like(v), v)

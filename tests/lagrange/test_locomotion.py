@@ -139,3 +139,44 @@ def test_the_adapters_report_an_early_end():
         gym_env.reset(seed=0)
         _, _, terminated, truncated, _ = gym_env.step(np.zeros(3, np.float32))
         assert terminated == expected and not truncated
+
+
+def test_a_task_that_cannot_end_early_traces_no_termination(monkeypatch):
+    """The property whose loss cost the acrobot demo 20 % of its return (dc5b7bf): a rollout of a task that cannot end
+    early (``ends_early`` False: every pole task, the cheetah) traces no termination logic at all. Masks that change no
+    value still change XLA's fusion of the rollout and with it the round-off, which CE-APG's chaotic swing-up amplified
+    into another training run (``examples/acrobot_swingup.py --quick``: 2534 -> 2040). The episode, SHAC's window loss
+    and the Brax adapter must never call ``terminated`` on such a task, and must call it on the hopper."""
+    from lagrange.interop.brax import BraxEnv
+    from lagrange.tasks import Acrobot, Cheetah, DiffRLCartpole
+
+    calls = []
+
+    def spy(self, state):
+        calls.append(type(self).__name__)
+        return jnp.zeros((), bool)
+
+    for cls in (Acrobot, DiffRLCartpole, Cheetah, Hopper):
+        monkeypatch.setattr(cls, "terminated", spy)
+    for task, expect in ((Acrobot.rods(horizon=5), False), (DiffRLCartpole.diffrl(horizon=5), False),
+                         (Cheetah.diffrl(horizon=5), False), (Hopper.diffrl(horizon=5), True)):
+        calls.clear()
+        policy = Actor.for_task(task, units=(4,))
+        jax.make_jaxpr(lambda k: optim.episode(task, policy, None, k))(jax.random.PRNGKey(0))
+        s = jax.vmap(task.reset)(jax.random.split(jax.random.PRNGKey(2), 2))
+        critic = Critic(task.observation_size, (4,), key=jax.random.PRNGKey(1))
+        jax.make_jaxpr(lambda s: actor_loss(policy, critic, None, task, s, jnp.zeros(2, jnp.int32), jnp.zeros(2),
+                                            jax.random.PRNGKey(3), short_horizon=2, horizon=5, gamma=0.99))(s)
+        env = BraxEnv(task)
+        jax.make_jaxpr(lambda st: env.step(st, jnp.zeros(task.action_size)))(env.reset(jax.random.PRNGKey(0)))
+        assert bool(calls) == expect, (type(task).__name__, calls)
+        assert type(task).ends_early == expect
+
+
+def test_a_task_that_defines_terminated_must_say_it_ends_early():
+    """A task class that overrides ``terminated`` without ``ends_early = True`` is refused when it is defined (its
+    rollouts would never look at ``terminated``)."""
+    from lagrange.tasks import AbstractTask
+
+    with pytest.raises(TypeError, match="defines terminated but not ends_early = True"):
+        type("Falls", (AbstractTask,), {"terminated": lambda self, state: jnp.ones((), bool)})
