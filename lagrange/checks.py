@@ -161,8 +161,8 @@ def stack(values, dtype):
 
 def stack_points(points, dtype):
     """Points ``(x, z)`` as a JAX array ``(k, 2)`` of ``dtype``, like :func:`_stack` (NumPy when all are concrete)."""
-    if any(isinstance(v, jax.core.Tracer) or any(isinstance(c, jax.core.Tracer) for c in v)
-           for v in points if not isinstance(v, jax.core.Tracer)) or any(isinstance(v, jax.core.Tracer) for v in points):
+    traced = any(isinstance(v, jax.core.Tracer) for v in points)
+    if traced or any(any(isinstance(c, jax.core.Tracer) for c in v) for v in points):
         return jnp.stack([jnp.stack([jnp.asarray(c, dtype=dtype) for c in v]) if not isinstance(v, jax.core.Tracer)
                           else jnp.asarray(v, dtype=dtype) for v in points])
     return jax.device_put(np.stack([np.asarray([np.asarray(c, dtype=dtype) for c in v], dtype=dtype) for v in points]))
@@ -203,7 +203,8 @@ def check_every_joint_moves_something(links: tuple, parents: tuple[int, ...]) ->
     Checked on the parameters alone, without computing ``M``."""
     mass = [concrete(lk.mass) for lk in links]
     length = [concrete(lk.length) for lk in links]
-    com = [length[i] / 2 if lk.com is None and length[i] is not None else concrete(lk.com) for i, lk in enumerate(links)]
+    com = [length[i] / 2 if lk.com is None and length[i] is not None else concrete(lk.com)
+           for i, lk in enumerate(links)]
     # a centre of mass off the link's line is off every joint's axis
     com = [c if is_zero(lk.com_normal) else None for c, lk in zip(com, links)]
     inertia = [

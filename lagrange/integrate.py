@@ -17,7 +17,7 @@ diffrax ``adjoint`` (e.g. ``diffrax.RecursiveCheckpointAdjoint()``,
 from __future__ import annotations
 
 import math
-from typing import Callable
+from collections.abc import Callable
 
 import diffrax
 import equinox as eqx
