@@ -301,3 +301,33 @@ def small_problem(name, iterations=2):
                            critic_minibatches=2, critic_units=(8,), target_alpha=0.3, actor_lr=1e-3, critic_lr=1e-3,
                            lr_end=1e-3)
     return cfg, task, Actor.for_task(task, units=(8,)), 4 * 4
+
+
+def reuse_trainers(monkeypatch, *known):
+    """Within ``monkeypatch``'s scope, every config's ``make_trainer`` returns the trainer it built before for an equal
+    config, the same task, policy and objective (objects), instead of building (and so compiling) it again: a trainer
+    is a deterministic function of these. For a test that runs ``optim.train`` on the same problem more than once (an
+    interrupted run and its resume), which would otherwise compile the same update again each time. ``known``:
+    ``(trainer, policy)`` pairs built before, by ``trainer.config.make_trainer(trainer.task, policy)`` (the default
+    objective), e.g. a ``short_run``'s, given back for that config, task and policy too."""
+    import optim
+
+    built = {(type(t.config), t.config, id(t.task), id(p), id(None)): (t, t.task, p, None) for t, p in known}
+
+    def reusing(make):
+        def make_trainer(self, task, policy, *, objective=None):
+            key = (type(self), self, id(task), id(policy), id(objective))
+            if key not in built:
+                built[key] = (make(self, task, policy, objective=objective), task, policy, objective)  # ids held
+            return built[key][0]
+
+        return make_trainer
+
+    classes, todo = [], [optim.AlgorithmConfig]
+    while todo:
+        cls = todo.pop()
+        todo += cls.__subclasses__()
+        if "make_trainer" in vars(cls) and not getattr(vars(cls)["make_trainer"], "__isabstractmethod__", False):
+            classes.append(cls)
+    for cls in classes:
+        monkeypatch.setattr(cls, "make_trainer", reusing(vars(cls)["make_trainer"]))

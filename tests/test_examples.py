@@ -1,13 +1,21 @@
 """The examples: on the public API only and one screen long; the main example end to end (a shortened --quick run
 writes every artefact and results.json has the documented fields; resume itself is tested on the same host loop in
-test_optim); every swing-up example offers the driver's flags; the SHAC example end to end."""
+test_optim); every swing-up example offers the driver's flags; the SHAC example end to end.
+
+The ``--help`` texts of the examples come from one fresh interpreter that runs each example script as ``__main__``
+(``runpy``, the script's own ``sys.argv`` and ``sys.path[0]``, as ``python examples/NAME.py --help`` would), instead of
+one interpreter per example: the same code path, one interpreter start instead of six."""
 
 import ast
 import json
 import os
+import runpy
 import subprocess
 import sys
+import textwrap
+import warnings
 
+import jax
 import pytest
 from PIL import Image
 
@@ -68,20 +76,79 @@ def _run(*args, ok=True, example="acrobot_swingup.py"):
     return proc
 
 
+HELPED = (*SWINGUPS, "mjcf_import.py", "cheetah_shac.py")  # the examples whose --help the tests read
+
+# Each example run as `python examples/NAME.py --help` runs it: as __main__, with its own argv and its folder first
+# on sys.path (not the working directory), in a fresh interpreter (one for all of them, the modules imported once).
+_HELP = textwrap.dedent(
+    """
+    import contextlib, io, json, os, runpy, sys
+    out = {}
+    for path in sys.argv[1:]:
+        sys.argv, sys.path[0] = [path, "--help"], os.path.dirname(path)
+        text = io.StringIO()
+        try:
+            with contextlib.redirect_stdout(text):
+                runpy.run_path(path, run_name="__main__")
+            code = "returned without exiting"
+        except SystemExit as exit:
+            code = exit.code
+        out[os.path.basename(path)] = {"code": code, "stdout": text.getvalue()}
+    print(json.dumps(out))
+    """
+)
+
+
+@pytest.fixture(scope="module")
+def help_texts():
+    """``{example: its --help text}`` for every example of ``HELPED``, each of which exited with status 0."""
+    env = dict(os.environ, MPLBACKEND="Agg")
+    proc = subprocess.run([sys.executable, "-c", _HELP, *(os.path.join(ROOT, "examples", e) for e in HELPED)],
+                          capture_output=True, text=True, env=env, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    runs = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert {name: run["code"] in (0, None) for name, run in runs.items()} == dict.fromkeys(HELPED, True), \
+        (runs, proc.stderr[-3000:])
+    return {name: run["stdout"] for name, run in runs.items()}
+
+
 @pytest.mark.parametrize("example", SWINGUPS)
-def test_help(example):
-    out = _run("--help", example=example).stdout
+def test_help(example, help_texts):
+    out = help_texts[example]
     for flag in ("--seed", "--iterations", "--out", "--resume", "--quick", "--no-progress", "--cpu-devices"):
         assert flag in out, flag
     assert ("--bodies" in out) == (example != "custom_chain.py")  # a chain of one's own has no Brax v1 bodies
 
 
-def test_mjcf_import_example_help():
-    out = _run("--help", example="mjcf_import.py").stdout
+def test_mjcf_import_example_help(help_texts):
+    out = help_texts["mjcf_import.py"]
     assert "--model" in out and "--seed" in out
 
 
+def _refusal(*args, example="acrobot_swingup.py") -> str:
+    """The one-line message with which ``python examples/EXAMPLE ARGS`` stops, from the example run as ``__main__`` in
+    this process (``runpy``, its own ``sys.argv``): the same code path as in a fresh interpreter (the driver raises
+    ``SystemExit(message)`` before any training, which Python prints as that line alone, no traceback), in the
+    examples' float32 (``jax.enable_x64(False)``: the tests run in float64, and a checkpoint records its task's
+    dtypes)."""
+    path = os.path.join(ROOT, "examples", example)
+    argv = sys.argv
+    sys.argv = [path, *args]
+    try:
+        with jax.enable_x64(False), warnings.catch_warnings(), pytest.raises(SystemExit) as stop:
+            # this process's JAX has started: the driver keeps its devices (the refusal comes before any sharding)
+            warnings.filterwarnings("ignore", message=r"use_cpu_cores\(\d+\) called after JAX started")
+            runpy.run_path(path, run_name="__main__")
+    finally:
+        sys.argv = argv
+    message = stop.value.code
+    assert isinstance(message, str) and "\n" not in message, message  # one line, printed as it is
+    return message
+
+
 def test_quick_run_writes_every_artefact(tmp_path):
+    """The --quick run of the acrobot example on one iteration, in a fresh interpreter; its two refusals of a resume
+    from the example run in this process (``_refusal``)."""
     out = tmp_path / "run"
     _run("--quick", "--iterations", "1", "--out", str(out), "--seed", "3", "--no-progress")
     for name in ("checkpoint.eqx", "results.json", "learning_curve.png", "swingup.png", "swingup.gif"):
@@ -103,12 +170,11 @@ def test_quick_run_writes_every_artefact(tmp_path):
     assert gif.n_frames > 50  # the 5-s episode, one frame per 0.05 s
     assert Image.open(out / "swingup.png").size[0] > 300
     # resuming with another seed (or more iterations done than asked) is refused in one line, not a traceback
-    err = _run("--quick", "--iterations", "1", "--out", str(out), "--seed", "4", "--resume", "--no-progress",
-               ok=False).stderr
+    err = _refusal("--quick", "--iterations", "1", "--out", str(out), "--seed", "4", "--resume", "--no-progress")
     assert "cannot resume" in err and "seed" in err and "Traceback" not in err
     # --bodies reaches the config: the rods' checkpoint is refused for the Brax v1 bodies, naming the field
-    err = _run("--quick", "--iterations", "1", "--out", str(out), "--seed", "3", "--resume", "--bodies", "brax_v1",
-               "--no-progress", ok=False).stderr
+    err = _refusal("--quick", "--iterations", "1", "--out", str(out), "--seed", "3", "--resume", "--bodies", "brax_v1",
+                   "--no-progress")
     assert "cannot resume" in err and "bodies" in err and "brax_v1" in err and "Traceback" not in err
     assert not (out / "results.json.tmp").exists()  # results.json is written through a temporary file
 
@@ -127,7 +193,7 @@ def test_shac_example_runs_and_writes_its_results(tmp_path):
     assert (tmp_path / "learning_curve.png").stat().st_size > 0
 
 
-def test_locomotion_examples_run_and_write_their_results(tmp_path):
+def test_locomotion_examples_run_and_write_their_results(tmp_path, help_texts):
     """examples/hopper_shac.py end to end on one epoch (the cheetah's shares the driver: its flags only): every
     artefact, and results.json's documented fields."""
     env = dict(os.environ, MPLBACKEND="Agg")
@@ -142,6 +208,6 @@ def test_locomotion_examples_run_and_write_their_results(tmp_path):
     assert res["env_steps"] == res["config"]["num_envs"] * res["config"]["short_horizon"]
     assert res["wall_clock_s"] > 0 and res["total_s"] >= res["wall_clock_s"] and res["anchor_return"] == 4800.0
     assert 0.0 <= res["succeeded_fraction"] <= 1.0 and len(res["curve"]) == 2
-    out = _run("--help", example="cheetah_shac.py").stdout
+    out = help_texts["cheetah_shac.py"]
     for flag in ("--seed", "--iterations", "--out", "--resume", "--quick", "--no-progress", "--overwrite"):
         assert flag in out, flag

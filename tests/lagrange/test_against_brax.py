@@ -21,9 +21,29 @@ Errors are ``rel(a, b) = max|a - b| / max(1, max|b|)`` (``tests/helpers.py``). T
   and why.
 
 Brax 0.14 gets a slide joint below a hinge wrong (``test_brax_bug_slide_joint_below_hinge``);
-chains with one are checked against MuJoCo only. Budget: Brax's pipeline compiles slowly, so each
-model is compiled once (trajectory and derivatives from one jitted ``jacrev``), Brax sees 6
-chains with gradients plus 5 with trajectories only; MuJoCo sees every chain in
+chains with one are checked against MuJoCo only.
+
+Budget: Brax's pipeline compiles slowly (its ``jacrev`` of a 500-step rollout takes 10-30 s to compile per
+model, its rollout alone 2-4 s, and no two models share a program), so each model is compiled once (trajectory
+and derivatives from one jitted ``jacrev``) and Brax sees the fewest chains that still cover every structure the
+library derives differently. Brax sees exactly these chains:
+
+- gradients and trajectories (``GRADIENT_CASES``): ``cartpole`` (a prismatic base on the x axis under a hinge,
+  undamped; 2 links, the unrolled derivation) and ``random3`` (a prismatic base on a slanted axis under four
+  hinges, damping, armature, two actuators; 5 links, the recursive derivation);
+- trajectories only (``TRAJECTORY_CASES``): ``random0`` (two hinges, damping and armature, the elbow actuated;
+  unrolled) and ``random6`` (eight hinges, damping and armature: the deepest chain, recursive);
+- the upright acrobot (``test_chaotic_upright_acrobot``), the pendulum carrying a slider
+  (``test_brax_bug_slide_joint_below_hinge``) and ``random3`` (``test_export_loads_in_brax_in_float64``).
+
+So Brax's derivatives cover revolute joints, a prismatic base (on the x axis and slanted), damping, armature and
+both the unrolled (< 4 links) and the recursive (>= 4 links) derivations; its trajectories add an unrolled chain
+with damping and armature and the deepest chain (no test here builds a branched tree). The Brax-safe chains that
+Brax does not see keep their MuJoCo comparisons: the pendulum, acrobot, double cartpole and ``random0`` have their
+trajectories and gradients checked against MuJoCo C (``test_gradients_match_mujoco_without_brax``), ``random4``
+and ``random5`` their trajectories (``test_trajectory_matches_mujoco_without_brax``), and ``random1`` and
+``random2`` are the seeded chains of ``test_against_mujoco.py`` (``test_brax_safe_chains_are_checked_against_mujoco``),
+whose ``test_semi_implicit_euler_matches_mujoco_euler`` runs the same 500-step problem. MuJoCo sees every chain in
 ``test_against_mujoco.py``.
 """
 
@@ -136,10 +156,15 @@ def _brax_safe(seed):
     return chain
 
 
-GRADIENT_CASES = [pytest.param(make(), dt, id=name) for name, (make, dt) in SYSTEMS.items()] + [
-    pytest.param(_brax_safe(seed), 0.005, id=f"random{seed}") for seed in (0, 3)
-]
-TRAJECTORY_CASES = [pytest.param(_brax_safe(seed), 0.005, id=f"random{seed}") for seed in (1, 2, 4, 5, 6)]
+# The chains Brax sees (the module docstring says what each covers).
+GRADIENT_CASES = [pytest.param(SYSTEMS["cartpole"][0](), SYSTEMS["cartpole"][1], id="cartpole"),
+                  pytest.param(_brax_safe(3), 0.005, id="random3")]
+TRAJECTORY_CASES = [pytest.param(_brax_safe(seed), 0.005, id=f"random{seed}") for seed in (0, 6)]
+# Brax-safe chains checked against MuJoCo C only (Brax covers their structures on the chains above).
+MUJOCO_GRADIENT_CASES = [pytest.param(SYSTEMS[name][0](), SYSTEMS[name][1], id=name)
+                         for name in ("pendulum", "acrobot", "double_cartpole")]
+MUJOCO_GRADIENT_CASES += [pytest.param(_brax_safe(0), 0.005, id="random0")]
+MUJOCO_TRAJECTORY_CASES = [pytest.param(_brax_safe(seed), 0.005, id=f"random{seed}") for seed in (4, 5)]
 
 
 def test_export_loads_in_brax_in_float64():
@@ -189,11 +214,29 @@ def test_trajectory_matches_brax(chain, dt):
     assert rel(q_brax[1:], q_mj[0]) <= TRAJECTORY and rel(qd_brax[1:], qd_mj[0]) <= TRAJECTORY
 
 
-@pytest.mark.parametrize("seed", [7, 3])
-def test_gradients_match_mujoco_with_slide_joint_below_hinge(seed):
-    """Chains Brax gets wrong (a slide joint below a hinge): gradients against MuJoCo C only."""
-    chain, dt = seeded_chain(seed), 0.005
-    assert has_slide_below_hinge(chain)
+@pytest.mark.parametrize("chain, dt", MUJOCO_TRAJECTORY_CASES)
+def test_trajectory_matches_mujoco_without_brax(chain, dt):
+    """Brax-safe chains whose structures Brax covers on other chains (see the module docstring): 500 steps of
+    lg.SemiImplicitEuler() against MuJoCo C, 1e-9, the problem ``test_trajectory_matches_brax`` runs."""
+    assert not has_slide_below_hinge(chain)
+    q0, qd0, us = random_problem(chain, 7, STEPS)
+    q, qd = map(np.asarray, jax.jit(our_trajectory(chain, dt))(jnp.asarray(q0), jnp.asarray(qd0), jnp.asarray(us)))
+    model, data = mujoco_model(chain, dt)
+    q_mj, qd_mj = mujoco_batch_rollout(model, data, q0, qd0, us)
+    assert rel(q[1:], q_mj[0]) <= TRAJECTORY and rel(qd[1:], qd_mj[0]) <= TRAJECTORY
+
+
+def test_brax_safe_chains_are_checked_against_mujoco():
+    """The Brax-safe random1 and random2 are the seeded chains of ``test_against_mujoco.py`` (no slide joint below
+    a hinge to replace), whose ``test_semi_implicit_euler_matches_mujoco_euler`` runs the same 500-step problem
+    (``random_problem(chain, 7)`` at dt = 0.005 s): MuJoCo C still checks them without Brax."""
+    for seed in (1, 2):
+        assert to_mjcf(_brax_safe(seed), timestep=0.005) == to_mjcf(seeded_chain(seed), timestep=0.005)
+
+
+def _gradients_match_mujoco(chain, dt):
+    """Our 500-step trajectory against MuJoCo C (1e-9), and our d(final state)/d(q0, qd0, controls) and grad of
+    the loss against central differences of MuJoCo C (1e-7)."""
     q0, qd0, us = random_problem(chain, 3, STEPS)
     J, (q, qd) = derivatives(our_trajectory(chain, dt))(q0, qd0, us)
     model, data = mujoco_model(chain, dt)
@@ -203,6 +246,23 @@ def test_gradients_match_mujoco_with_slide_joint_below_hinge(seed):
     assert np.max(np.abs(J[:-1])) > 0.5
     assert rel(J[:-1], J_fd[:-1]) <= FINITE_DIFFERENCE
     assert rel(J[-1], J_fd[-1]) <= FINITE_DIFFERENCE
+
+
+@pytest.mark.parametrize("chain, dt", MUJOCO_GRADIENT_CASES)
+def test_gradients_match_mujoco_without_brax(chain, dt):
+    """Brax-safe chains whose structures Brax differentiates on other chains (see the module docstring):
+    trajectories and gradients against MuJoCo C, as ``test_trajectory_and_gradients_match_brax_and_mujoco``
+    checks them."""
+    assert not has_slide_below_hinge(chain)
+    _gradients_match_mujoco(chain, dt)
+
+
+@pytest.mark.parametrize("seed", [7, 3])
+def test_gradients_match_mujoco_with_slide_joint_below_hinge(seed):
+    """Chains Brax gets wrong (a slide joint below a hinge): gradients against MuJoCo C only."""
+    chain, dt = seeded_chain(seed), 0.005
+    assert has_slide_below_hinge(chain)
+    _gradients_match_mujoco(chain, dt)
 
 
 def test_brax_bug_slide_joint_below_hinge():

@@ -106,6 +106,23 @@ def test_closed_forms_are_not_trivially_equal():
 SIZES = (1, 2, 3, 4, 7)  # 1-4 links take the relative-angle path, 7 the recursive one (lagrange.recursive)
 
 
+def _el_mass_bias_gravity(chain, q, qd):
+    """The oracle's M, its bias forces and its gravity forces (its bias at rest) at one state. The two bias forces
+    are one ``el.bias_forces`` evaluated at the velocities ``qd`` and ``0`` (vmapped): the oracle's dense Hessians
+    are the costliest part of these tests to compile, and this compiles them once instead of twice."""
+    bias = jax.vmap(lambda v: el.bias_forces(chain, q, v))(jnp.stack([qd, jnp.zeros_like(qd)]))
+    return el.mass_matrix(chain, q), (bias[0], bias[1])
+
+
+def _el_forward_dynamics(chain, M, bias, u):
+    """``el.forward_dynamics`` (its own lines: the controls through the gears, ``jnp.linalg.solve``) from the oracle's
+    M and bias already computed, instead of deriving both again inside it."""
+    tau = jnp.zeros(chain.n, M.dtype)
+    if u is not None and chain.m:
+        tau = tau.at[jnp.array(chain.actuated)].add(chain.gear * u)
+    return jnp.linalg.solve(M, tau - bias)
+
+
 @functools.cache
 def chain_results(n):
     """Everything the random-chain tests compare, computed in one compiled call per chain size."""
@@ -130,6 +147,7 @@ def chain_results(n):
             C = 0.5 * (
                 jnp.einsum("ijk,k->ij", dM, qd) + jnp.einsum("ikj,k->ij", dM, qd) - jnp.einsum("jki,k->ij", dM, qd)
             )
+            el_M, (el_bias, el_gravity) = _el_mass_bias_gravity(chain, q, qd)
             return dict(
                 M=M,
                 bias=lg.bias_forces(chain, q, qd),
@@ -140,10 +158,10 @@ def chain_results(n):
                 dV=jax.grad(lambda x: lg.energy(chain, x, qd)[1])(q),
                 C=C,
                 Mdot=jax.jvp(lambda x: lg.mass_matrix(chain, x), (q,), (qd,))[1],
-                el_M=el.mass_matrix(chain, q),
-                el_bias=el.bias_forces(chain, q, qd),
-                el_gravity=el.bias_forces(chain, q, jnp.zeros_like(qd)),
-                el_qdd=el.forward_dynamics(chain, q, qd, uu),
+                el_M=el_M,
+                el_bias=el_bias,
+                el_gravity=el_gravity,
+                el_qdd=_el_forward_dynamics(chain, el_M, el_bias, uu),
             )
 
         return jax.vmap(one)(q, qd, u)
@@ -178,10 +196,8 @@ def test_frame_offsets_and_off_line_coms_match_euler_lagrange(n):
     @jax.jit
     @jax.vmap
     def run(q, qd):
-        out = {
-            "el": (el.mass_matrix(chain, q), el.bias_forces(chain, q, qd), el.bias_forces(chain, q, 0 * qd),
-                   sum(el.energy(chain, q, qd)), el.com_and_angles(chain, q)[0]),
-        }
+        el_M, (el_bias, el_gravity) = _el_mass_bias_gravity(chain, q, qd)
+        out = {"el": (el_M, el_bias, el_gravity, sum(el.energy(chain, q, qd)), el.com_and_angles(chain, q)[0])}
         for mod in modules:
             out[mod.__name__] = (mod.mass_matrix(chain, q), mod.bias_forces(chain, q, qd), mod.gravity_forces(chain, q),
                                  sum(mod.energy(chain, q, qd)), lg.com_positions(chain, q))

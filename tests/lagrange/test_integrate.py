@@ -213,12 +213,14 @@ def test_adaptive_accuracy(order_problem):
     controller bounds the local error per step by the tolerance, and over the ~30 accepted steps
     of this problem the global error stays within 100 x tol."""
     chain, q0, qd0, u, T, y_ref = order_problem
-    for solver in (lg.Dopri5(), lg.Tsit5()):
-        traj = lg.simulate(chain, q0, qd0, u[None], T, solver, rtol=1e-8, atol=1e-8)
+    runs = ((lg.Dopri5(), 1e-8), (lg.Tsit5(), 1e-8), (lg.Dopri5(), 1e-5))
+    # the three adaptive rollouts in one compiled program (op by op, each compiles its own loop anyway)
+    dopri5, tsit5, loose = jax.jit(lambda q0, qd0, u: [
+        lg.simulate(chain, q0, qd0, u[None], T, solver, rtol=tol, atol=tol) for solver, tol in runs])(q0, qd0, u)
+    for solver, traj in ((lg.Dopri5(), dopri5), (lg.Tsit5(), tsit5)):
         err = float(jnp.max(jnp.abs(jnp.concatenate([traj.q[-1], traj.qd[-1]]) - y_ref)))
         assert err < 1e-6, (name(solver), err)
-    # tightening the tolerance improves it
-    loose = lg.simulate(chain, q0, qd0, u[None], T, lg.Dopri5(), rtol=1e-5, atol=1e-5)
+    # tightening the tolerance improves it (loose: Dopri5 at rtol = atol = 1e-5)
     err_loose = float(jnp.max(jnp.abs(jnp.concatenate([loose.q[-1], loose.qd[-1]]) - y_ref)))
     assert err_loose > 10 * err
 
@@ -352,18 +354,23 @@ def test_symplectic_euler_solves_its_implicit_equation():
     rng = np.random.default_rng(3)
     q, qd = jnp.asarray(rng.uniform(-3, 3, (64, 2))), jnp.asarray(10 * rng.normal(size=(64, 2)))
     u, h = jnp.asarray(rng.uniform(-1, 1, (64, 1))), 1e-3
-    q1, qd1 = lg.step(chain, q, qd, u, h, lg.SymplecticEuler())
-    v = (q1 - q) / h
-    kin_grad = jax.vmap(jax.grad(lambda q, v: lg.energy(chain, q, v)[0]))(q, v)
-    M = lg.mass_matrix(chain, q)
+
+    @jax.jit  # one compiled program: op by op, the sweeps and the energy's gradient cost ~3x its compilation
+    def library(q, qd, u):
+        q1, qd1 = lg.step(chain, q, qd, u, h, lg.SymplecticEuler())
+        v = (q1 - q) / h
+        kin_grad = jax.vmap(jax.grad(lambda q, v: lg.energy(chain, q, v)[0]))(q, v)
+        loose = lg.step(chain, q, qd, u, h, lg.SymplecticEuler(iterations=4))[1]
+        return q1, qd1, v, kin_grad, lg.mass_matrix(chain, q), lg.mass_matrix(chain, q1), loose
+
+    q1, qd1, v, kin_grad, M, M1, loose = library(q, qd, u)
     lhs = jnp.einsum("bij,bj->bi", M + h * jnp.diag(chain.damping), v)
     rhs = (jnp.einsum("bij,bj->bi", M, qd)
            + h * (u @ lg.actuation_matrix(chain).T - lg.gravity_forces(chain, q) + kin_grad))
     scale = float(jnp.max(jnp.abs(rhs)))
     assert float(jnp.max(jnp.abs(lhs - rhs))) <= 1e-13 * scale
-    p1 = jnp.einsum("bij,bj->bi", lg.mass_matrix(chain, q1), qd1)
+    p1 = jnp.einsum("bij,bj->bi", M1, qd1)
     np.testing.assert_allclose(p1, jnp.einsum("bij,bj->bi", M, v), rtol=0, atol=1e-12 * scale)
-    loose = lg.step(chain, q, qd, u, h, lg.SymplecticEuler(iterations=4))[1]
     assert float(jnp.max(jnp.abs(loose - qd1))) > 1e-9  # the sweep count matters: the check can fail
 
 

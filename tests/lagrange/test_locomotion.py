@@ -44,10 +44,15 @@ def test_the_tree_is_assembled(make, total, armature):
     total weight; at rest the lowest contact spot is where DFlex puts it."""
     task = make()
     q = jax.random.uniform(jax.random.PRNGKey(0), (task.chain.n,), minval=-0.5, maxval=0.5)
-    M = lg.mass_matrix(task.chain, q)
+
+    @jax.jit
+    def terms(q, start):  # one compiled program (op by op, each operation is a compilation)
+        return (lg.mass_matrix(task.chain, q), lg.gravity_forces(task.chain, q),
+                lg.kinematics.contact_point_positions(task.chain, start))
+
+    M, gravity, pts = terms(q, jnp.asarray(task.start))
     assert abs(float(M[0, 0]) - (total + armature)) < 1e-4 and abs(float(M[1, 1]) - (total + armature)) < 1e-4
-    assert abs(float(lg.gravity_forces(task.chain, q)[1]) - 9.81 * total) < 1e-3
-    pts = lg.kinematics.contact_point_positions(task.chain, jnp.asarray(task.start))
+    assert abs(float(gravity[1]) - 9.81 * total) < 1e-3
     lowest = float(jnp.min(pts[:, 1] - task.chain.contact_points[:, 2]))
     assert abs(lowest - (0.04 if task.name == "hopper" else 0.1759)) < 1e-3, lowest
 
@@ -69,10 +74,16 @@ def test_hopper_reward_and_early_end():
 @pytest.mark.parametrize("make, nq, nqd, start", [(Hopper.diffrl, 0.05, 0.05, 0.0), (Cheetah.diffrl, 0.1, 0.25, -0.2)])
 def test_reset_noise(make, nq, nqd, start):
     task = make()
-    s = jax.vmap(task.reset)(jax.random.split(jax.random.PRNGKey(1), 2000))
+
+    @jax.jit
+    def draw(key):  # 2000 resets and one observation: one compiled program
+        s = jax.vmap(task.reset)(jax.random.split(key, 2000))
+        return s, task.observe(TaskState(s.q[0], s.qd[0]))
+
+    s, obs = draw(jax.random.PRNGKey(1))
     q = np.asarray(s.q) - np.asarray(task.start)
     assert np.all(np.abs(q) <= nq) and np.all(np.abs(np.asarray(s.qd)) <= nqd) and np.max(np.abs(q)) > 0.9 * nq
-    assert task.start[1] == start and task.observe(TaskState(s.q[0], s.qd[0])).shape == (2 * task.chain.n - 1,)
+    assert task.start[1] == start and obs.shape == (2 * task.chain.n - 1,)
     assert task.solver == DFLEX_SOLVER and task.dt == 1 / 60 and task.substeps == 16 and task.horizon == 1000
 
 
@@ -90,8 +101,13 @@ def test_an_episode_that_ends_early_counts_nothing_after():
     """The hopper with no action falls: its rewards stop at the step that ended it and the state stays there."""
     task = Hopper.diffrl(horizon=300)
 
-    ep = optim.episode(task, Still(), None, jax.random.PRNGKey(0))
-    ended = np.asarray(jax.vmap(lambda q, qd: task.terminated(TaskState(q, qd)))(ep.q[1:], ep.qd[1:]))
+    @jax.jit
+    def run(key):  # the episode and the early end at each of its states: one compiled program
+        ep = optim.episode(task, Still(), None, key)
+        return ep, jax.vmap(lambda q, qd: task.terminated(TaskState(q, qd)))(ep.q[1:], ep.qd[1:])
+
+    ep, ended = run(jax.random.PRNGKey(0))
+    ended = np.asarray(ended)
     first = int(np.argmax(ended))
     assert ended.any() and first < 299
     assert np.all(np.asarray(ep.rewards)[first + 1:] == 0) and float(ep.rewards[first]) != 0
@@ -106,10 +122,14 @@ def test_shac_values_an_early_end_at_zero():
     n = 4
     actor = Actor.for_task(task, units=(8,))
     critic = Critic(task.observation_size, (8,), key=jax.random.PRNGKey(1))
-    s = jax.vmap(task.reset)(jax.random.split(jax.random.PRNGKey(2), n))
-    s = TaskState(s.q.at[:2, 1].set(-0.44).at[:2, 2].set(1.2), s.qd.at[:2, 1].set(-3.0))  # two about to fall
-    loss, win = actor_loss(actor, critic, None, task, s, jnp.zeros(n, jnp.int32), jnp.zeros(n), jax.random.PRNGKey(3),
-                           short_horizon=8, horizon=1000, gamma=0.99)
+    @jax.jit
+    def window(key):  # the starts and the window: one compiled program
+        s = jax.vmap(task.reset)(jax.random.split(key, n))
+        s = TaskState(s.q.at[:2, 1].set(-0.44).at[:2, 2].set(1.2), s.qd.at[:2, 1].set(-3.0))  # two about to fall
+        return actor_loss(actor, critic, None, task, s, jnp.zeros(n, jnp.int32), jnp.zeros(n), jax.random.PRNGKey(3),
+                          short_horizon=8, horizon=1000, gamma=0.99)
+
+    loss, win = window(jax.random.PRNGKey(2))
     done, nv = np.asarray(win.dones), np.asarray(win.next_values)
     assert done[:, :2].any() and not done[:, 2:].any() and np.isfinite(float(loss))
     assert np.all(nv[done] == 0) and np.all(nv[~done] != 0)
@@ -146,7 +166,8 @@ def test_a_task_that_cannot_end_early_traces_no_termination(monkeypatch):
     early (``ends_early`` False: every pole task, the cheetah) traces no termination logic at all. Masks that change no
     value still change XLA's fusion of the rollout and with it the round-off, which CE-APG's chaotic swing-up amplified
     into another training run (``examples/acrobot_swingup.py --quick``: 2534 -> 2040). The episode, SHAC's window loss
-    and the Brax adapter must never call ``terminated`` on such a task, and must call it on the hopper."""
+    and the Brax adapter must never call ``terminated`` on such a task, and must call it on the hopper. (Only traced:
+    the policy, critic and states are shapes, ``eqx.filter_eval_shape``, so that nothing is computed.)"""
     from lagrange.interop.brax import BraxEnv
     from lagrange.tasks import Acrobot, Cheetah, DiffRLCartpole
 
@@ -161,14 +182,16 @@ def test_a_task_that_cannot_end_early_traces_no_termination(monkeypatch):
     for task, expect in ((Acrobot.rods(horizon=5), False), (DiffRLCartpole.diffrl(horizon=5), False),
                          (Cheetah.diffrl(horizon=5), False), (Hopper.diffrl(horizon=5), True)):
         calls.clear()
-        policy = Actor.for_task(task, units=(4,))
-        jax.make_jaxpr(lambda k: optim.episode(task, policy, None, k))(jax.random.PRNGKey(0))
-        s = jax.vmap(task.reset)(jax.random.split(jax.random.PRNGKey(2), 2))
-        critic = Critic(task.observation_size, (4,), key=jax.random.PRNGKey(1))
-        jax.make_jaxpr(lambda s: actor_loss(policy, critic, None, task, s, jnp.zeros(2, jnp.int32), jnp.zeros(2),
-                                            jax.random.PRNGKey(3), short_horizon=2, horizon=5, gamma=0.99))(s)
+        policy = eqx.filter_eval_shape(Actor.for_task, task, units=(4,))
+        eqx.filter_make_jaxpr(lambda p, k: optim.episode(task, p, None, k))(policy, jax.random.PRNGKey(0))
+        s = jax.eval_shape(lambda k: jax.vmap(task.reset)(jax.random.split(k, 2)), jax.random.PRNGKey(2))
+        critic = eqx.filter_eval_shape(Critic, task.observation_size, (4,), key=jax.random.PRNGKey(1))
+        eqx.filter_make_jaxpr(lambda p, c, s: actor_loss(p, c, None, task, s, jnp.zeros(2, jnp.int32), jnp.zeros(2),
+                                                         jax.random.PRNGKey(3), short_horizon=2, horizon=5,
+                                                         gamma=0.99))(policy, critic, s)
         env = BraxEnv(task)
-        jax.make_jaxpr(lambda st: env.step(st, jnp.zeros(task.action_size)))(env.reset(jax.random.PRNGKey(0)))
+        eqx.filter_make_jaxpr(lambda st: env.step(st, jnp.zeros(task.action_size)))(
+            eqx.filter_eval_shape(env.reset, jax.random.PRNGKey(0)))
         assert bool(calls) == expect, (type(task).__name__, calls)
         assert type(task).ends_early == expect
 

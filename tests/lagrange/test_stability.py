@@ -291,7 +291,8 @@ def test_singular_chains_are_refused_with_a_reason():
         with pytest.raises(RuntimeError, match="mass matrix is singular"):
             jax.block_until_ready(lg.forward_dynamics(chain, jnp.array([0.3, q2]), qd))
     q = jnp.array([0.3, 0.5])
-    assert np.allclose(lg.forward_dynamics(chain, q, qd), el.forward_dynamics(chain, q, qd), rtol=1e-12, atol=0)
+    oracle = jax.jit(lambda q, qd: el.forward_dynamics(chain, q, qd))  # compiled: its Hessians cost ~5 s op by op
+    assert np.allclose(lg.forward_dynamics(chain, q, qd), oracle(q, qd), rtol=1e-12, atol=0)
 
 
 def test_a_1e16_mass_ratio_is_badly_scaled_not_singular():
@@ -302,11 +303,12 @@ def test_a_1e16_mass_ratio_is_badly_scaled_not_singular():
     1.8e-16, the oracle within 3.7e-16, relative, in each coordinate)."""
     chain = Chain([Link("revolute", 1e8, 1.0), Link("revolute", 1e-8, 1.0)])
     rng = np.random.default_rng(0)
+    oracle = jax.jit(lambda q, qd: el.forward_dynamics(chain, q, qd))  # compiled: its Hessians cost ~5 s op by op
     for _ in range(3):
         q, qd = jnp.asarray(rng.uniform(-3, 3, 2)), jnp.asarray(rng.uniform(-3, 3, 2))
         w = np.linalg.eigvalsh(np.asarray(lg.mass_matrix(chain, q)))
         assert w[0] / w[1] < 1e-15
-        qdd, ref = np.asarray(lg.forward_dynamics(chain, q, qd)), np.asarray(el.forward_dynamics(chain, q, qd))
+        qdd, ref = np.asarray(lg.forward_dynamics(chain, q, qd)), np.asarray(oracle(q, qd))
         assert np.all(np.abs(qdd - ref) <= 1e-14 * np.abs(ref)), (qdd, ref)
 
 
@@ -334,12 +336,19 @@ def _to_f32(chain):
     return jax.tree.map(lambda x: x.astype(jnp.float32) if eqx.is_array(x) else x, chain)
 
 
+@functools.partial(jax.jit, static_argnames=("dt", "steps"))
+def _rk4_positions(chain, q0, qd0, dt, steps):
+    """The joint coordinates of an RK4 rollout, compiled once per chain structure, dtype, ``dt`` and ``steps`` (the
+    chain is an argument), so the three rollouts of :func:`_parting_time`, its calls and the tests share it."""
+    return _rollout(chain, q0, qd0, dt, lg.RK4(), steps).q
+
+
 def _parting_time(chain, q0, dt=1e-3, steps=20_000, tol=0.1, perturb=None):
     """First time max_j |q_j - q64_j| > tol rad between float64 and float32 (or float64 with
     q0 perturbed by ``perturb``); inf if they never part. Also returns the final gap."""
     q0 = jnp.asarray(q0, jnp.float64)
     zeros = jnp.zeros_like(q0)
-    run = jax.jit(lambda c, q, qd: _rollout(c, q, qd, dt, lg.RK4(), steps).q)
+    run = functools.partial(_rk4_positions, dt=dt, steps=steps)
     ref = np.asarray(run(chain, q0, zeros))
     if perturb is None:
         other = run(_to_f32(chain), q0.astype(jnp.float32), zeros.astype(jnp.float32))

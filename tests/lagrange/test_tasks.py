@@ -23,14 +23,19 @@ FINAL = (Acrobot, Cartpole, DoubleCartpole, ChainSwingup, DiffRLCartpole)
 @pytest.mark.parametrize("name, n, obs", [("acrobot", 2, 4), ("cartpole", 2, 4), ("double_cartpole", 3, 8)])
 def test_reset_hangs_with_bounded_noise(name, n, obs):
     task = tasks.PAPER_TASKS[name].rods()
-    s = jax.vmap(task.reset)(jax.random.split(jax.random.PRNGKey(0), 256))
+
+    @jax.jit
+    def draw(key):  # the resets, their angles and an observation: one compiled program
+        s = jax.vmap(task.reset)(jax.random.split(key, 256))
+        return s, jax.vmap(task.angles)(s), task.observe(jax.tree_util.tree_map(lambda x: x[0], s))
+
+    s, th, first = draw(jax.random.PRNGKey(0))
     assert s.q.shape == (256, n) and s.qd.shape == (256, n)
     assert float(jnp.max(jnp.abs(s.q))) <= 0.01 and float(jnp.max(jnp.abs(s.qd))) <= 0.01
     assert float(jnp.max(jnp.abs(s.q))) > 0.009  # the noise is really there and uniform on [-0.01, 0.01]
-    th = jax.vmap(task.angles)(s)
     # the first pole hangs: |th1| = pi - |noise|, wrapped into (-pi, pi]
     np.testing.assert_allclose(np.abs(th[:, 0]), np.pi - np.abs(s.q[:, task.first_pole]), atol=1e-12)
-    assert task.observe(jax.tree_util.tree_map(lambda x: x[0], s)).shape == (obs,)
+    assert first.shape == (obs,)
     assert task.horizon == 500
 
 
@@ -39,16 +44,22 @@ def test_upright_fraction_of_starts():
     keys = jax.random.split(jax.random.PRNGKey(1), 4000)
     for task in (Acrobot.rods(), DoubleCartpole.rods()):
         i = task.first_pole
-        paper = jax.vmap(task.reset)(keys)
-        mixed = jax.vmap(dataclasses.replace(task, upright=0.25).reset)(keys)
-        always = jax.vmap(dataclasses.replace(task, upright=1).reset)(keys)
-        up = np.asarray(jnp.abs(jax.vmap(task.angles)(mixed)[:, 0]) < 0.1)
+
+        @jax.jit
+        def draw(keys):  # the three kinds of starts and the angles: one compiled program
+            mixed = jax.vmap(dataclasses.replace(task, upright=0.25).reset)(keys)
+            always = jax.vmap(dataclasses.replace(task, upright=1).reset)(keys)
+            return (jax.vmap(task.reset)(keys), mixed, always, jax.vmap(task.angles)(mixed),
+                    jax.vmap(task.angles)(always))
+
+        paper, mixed, always, mixed_angles, always_angles = draw(keys)
+        up = np.asarray(jnp.abs(mixed_angles[:, 0]) < 0.1)
         assert 0.22 < up.mean() < 0.28  # binomial(4000, 0.25): std 0.007
         # the same noise either way: only the first pole's angle moves, by exactly pi when upright
         np.testing.assert_array_equal(mixed.qd, paper.qd)
         np.testing.assert_allclose(mixed.q[:, i] - paper.q[:, i], np.pi * up, atol=1e-6)
         np.testing.assert_allclose(always.q[:, i] - paper.q[:, i], np.pi, atol=1e-6)
-        assert bool(jnp.all(jnp.abs(jax.vmap(task.angles)(always)[:, 0]) <= 0.01 + 1e-6))
+        assert bool(jnp.all(jnp.abs(always_angles[:, 0]) <= 0.01 + 1e-6))
     with pytest.raises(ValueError, match=r"Acrobot.upright must be a number in \[0, 1\], got 1.5"):
         dataclasses.replace(Acrobot.rods(), upright=1.5)
     with pytest.raises(ValueError, match="upright"):
@@ -61,15 +72,19 @@ def test_start_states():
     task = DoubleCartpole.rods()
     X = jnp.asarray([[0.5, 1.0, -1.0, 2.0, 0.0, 3.0], [-0.5, 2.0, 0.5, 0.0, -4.0, 1.0], [0.0, 3.0, 0.0, 0.0, 0.0, 0.0]])
     keys = jax.random.split(jax.random.PRNGKey(2), 3000)
-    paper = jax.vmap(task.reset)(keys)
-    drawn = jax.jit(jax.vmap(dataclasses.replace(task, starts=X).reset))(keys)
+
+    @jax.jit
+    def draw(keys):  # the paper's starts, the drawn rows, both mixed with upright ones: one compiled program
+        mixed = jax.vmap(dataclasses.replace(task, starts=X, upright=0.5).reset)(keys)
+        return (jax.vmap(task.reset)(keys), jax.vmap(dataclasses.replace(task, starts=X).reset)(keys), mixed,
+                jax.vmap(task.angles)(mixed))
+
+    paper, drawn, mixed, mixed_angles = (jax.tree_util.tree_map(np.asarray, x) for x in draw(keys))
     x = np.concatenate([drawn.q - paper.q, drawn.qd - paper.qd], axis=1)  # the drawn row: the noise is the same
     row = np.argmin(np.abs(x[:, None, :] - np.asarray(X)[None]).max(-1), axis=1)
     np.testing.assert_allclose(x, np.asarray(X)[row], atol=1e-6)
     assert np.all(np.abs(np.bincount(row, minlength=3) / 3000 - 1 / 3) < 0.03)  # uniform: std 0.009
-    mixed = jax.vmap(dataclasses.replace(task, starts=X, upright=0.5).reset)(keys)
-    up = np.asarray(jnp.abs(jax.vmap(task.angles)(mixed)[:, 0]) <= 0.01 + 1e-6) & np.asarray(
-        jnp.abs(mixed.qd).max(-1) <= 0.01)
+    up = (np.abs(mixed_angles[:, 0]) <= 0.01 + 1e-6) & (np.abs(mixed.qd).max(-1) <= 0.01)
     assert 0.46 < up.mean() < 0.54
     for bad in (X[:, :4], X[0], jnp.zeros((0, 6))):
         with pytest.raises(ValueError, match=r"DoubleCartpole.starts must be an array of shape \(K >= 1, 2 n = 6\)"):
@@ -178,12 +193,18 @@ def test_step_matches_dopri8_and_clips_actions():
     s0 = _state([0.005, -0.003], [0.0, 0.0])
     t = jnp.arange(500) * task.dt
     a = 0.6 * jnp.sin(2 * jnp.pi * 1.2 * t)[:, None]
-    s_end, qs = jax.lax.scan(lambda s, u: (task.step(s, u),) * 2, s0, a)
-    ref = lg.simulate(task.chain, s0.q, s0.qd, a, task.dt, lg.Dopri8(), rtol=1e-12, atol=1e-12, max_steps=100000)
+
+    @jax.jit
+    def run(s0, a):  # the task's steps, Dopri8's rollout, two clipped steps: one compiled program
+        s_end, qs = jax.lax.scan(lambda s, u: (task.step(s, u),) * 2, s0, a)
+        ref = lg.simulate(task.chain, s0.q, s0.qd, a, task.dt, lg.Dopri8(), rtol=1e-12, atol=1e-12, max_steps=100000)
+        return qs, ref, task.step(s0, jnp.array([3.0])).q, task.step(s0, jnp.array([1.0])).q
+
+    qs, ref, beyond, one = run(s0, a)
     assert float(jnp.max(jnp.abs(qs.q - ref.q[1:]))) < 1e-3
     assert float(jnp.max(jnp.abs(ref.q))) > 1.5  # the trajectory really swings
     # actions beyond [-1, 1] are clipped before the gear
-    np.testing.assert_array_equal(task.step(s0, jnp.array([3.0])).q, task.step(s0, jnp.array([1.0])).q)
+    np.testing.assert_array_equal(beyond, one)
 
 
 def test_energy_drift_is_at_least_fourth_order():
@@ -328,13 +349,19 @@ def test_chain_task_is_the_acrobot_on_the_acrobot_chain():
     """``ChainSwingup`` on the acrobot's chain resets, steps, observes and rewards exactly as ``Acrobot``."""
     a, c = Acrobot.rods(trig=True, upright=0.3), ChainSwingup(systems.acrobot(), trig=True, upright=0.3)
     keys = jax.random.split(jax.random.PRNGKey(4), 64)
-    sa, sc = jax.vmap(a.reset)(keys), jax.vmap(c.reset)(keys)
-    np.testing.assert_array_equal(sa.q, sc.q)
     u = jnp.full((64, 1), 0.7)
-    na, nc = jax.vmap(a.step)(sa, u), jax.vmap(c.step)(sc, u)
-    np.testing.assert_array_equal(na.qd, nc.qd)
-    np.testing.assert_array_equal(jax.vmap(a.observe)(na), jax.vmap(c.observe)(nc))
-    np.testing.assert_array_equal(jax.vmap(a.reward)(sa, u, na), jax.vmap(c.reward)(sc, u, nc))
+
+    @jax.jit
+    def both(keys, u):  # each task's reset, step, observation and reward: one compiled program
+        out = []
+        for task in (a, c):
+            s = jax.vmap(task.reset)(keys)
+            n = jax.vmap(task.step)(s, u)
+            out.append((s.q, n.qd, jax.vmap(task.observe)(n), jax.vmap(task.reward)(s, u, n)))
+        return out
+
+    for x, y in zip(*both(keys, u)):  # reset q, next qd, observation, reward
+        np.testing.assert_array_equal(x, y)
 
 
 def test_chain_task_validates():

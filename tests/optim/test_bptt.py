@@ -44,9 +44,9 @@ def _cached(f):
 
 
 @_cached
-def _by_hand(problem, objective, clip=None):
-    """The loop ``apg_steps`` documents, one jitted gradient per step: the gradient of each step (before clipping to
-    the global norm ``clip``, where given) and the results."""
+def _value_and_grad(problem, objective):
+    """The jitted objective of step ``i``'s batch and its gradient (one compilation per objective, whatever the
+    clip)."""
     task, params, unravel, norm, key = problem
 
     @jax.jit
@@ -59,6 +59,15 @@ def _by_hand(problem, objective, clip=None):
 
         return jax.value_and_grad(loss, has_aux=True)(p)
 
+    return value_and_grad
+
+
+@_cached
+def _by_hand(problem, objective, clip=None):
+    """The loop ``apg_steps`` documents, one jitted gradient per step: the gradient of each step (before clipping to
+    the global norm ``clip``, where given) and the results."""
+    task, params, unravel, norm, key = problem
+    value_and_grad = _value_and_grad(problem, objective)
     adam = optax.scale_by_adam()
     opt, p, grads, values = adam.init(params), params, [], []
     for i in range(STEPS):

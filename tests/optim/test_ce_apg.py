@@ -17,7 +17,7 @@ import optim
 from lagrange.tasks import Acrobot, ChainSwingup, DiffRLCartpole
 from optim.ce_apg import training_tasks
 from policies import BraxNormalizer, GRUPolicy, Normalizer
-from tests.helpers import pendulum_swingup, states_equal, tiny_mlp
+from tests.helpers import pendulum_swingup, reuse_trainers, states_equal, tiny_mlp
 
 
 def test_paper_presets():
@@ -257,12 +257,14 @@ def test_train_noise_widens_the_training_starts_and_evaluates_the_task():
     assert fitness[0.5] > fitness[None] + 5
 
 
-def test_warmup_horizons_schedule_the_training_episodes(tmp_path):
+def test_warmup_horizons_schedule_the_training_episodes(tmp_path, monkeypatch):
     """The warm-up trains and scores candidates on ``warmup_horizons[i]``-step episodes from upright for
     ``warmup_iterations`` iterations each, then on the full hanging task; env steps follow the stage; a run
     resumed across a stage boundary (its config holds a tuple, stored as JSON) equals an uninterrupted one and
     ``scan_train``. With a zero policy (std 0, a negligible learning rate) a 1 kg pendulum started upright earns
-    nearly 10 per step; left hanging about 10 - pi^2."""
+    nearly 10 per step; left hanging about 10 - pi^2. (The resume gets the trainer the first run built for the same
+    config, task and policy, ``tests.helpers.reuse_trainers``, instead of compiling its update again.)"""
+    reuse_trainers(monkeypatch)
     task = pendulum_swingup(horizon=20)
     policy = tiny_mlp(task)  # zero weights (std 0): no torque, as any zero policy
     cfg = optim.CEAPGConfig(num_candidates=2, num_elites=1, iterations=5, apg_steps=1, episodes=2, fitness_window=1,

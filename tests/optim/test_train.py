@@ -19,8 +19,8 @@ import optim
 from optim import checkpoint
 from optim.train import describe
 from policies import MLPPolicy
-from tests.helpers import (ALGORITHMS, EVAL_KEY, EVALUATED, RUN_KEY, RUN_SEED, small_problem, states_equal,
-                           tiny_acrobot, tiny_gru, tiny_mlp)
+from tests.helpers import (ALGORITHMS, EVAL_KEY, EVALUATED, RUN_KEY, RUN_SEED, reuse_trainers, small_problem,
+                           states_equal, tiny_acrobot, tiny_gru, tiny_mlp)
 
 
 def _without_elapsed(history):
@@ -98,7 +98,10 @@ def test_interrupted_and_resumed_runs(name, short_run, tmp_path, monkeypatch):
     checkpointed iteration 3, and resumed again. The result is, bit for bit, two updates of the 2-iteration trainer
     and two of the 4-iteration one (a grown run follows the new config's schedule from where it resumes); the history
     keeps every iteration. SHAC's learning rates are constant here, so it is also the uninterrupted 4-iteration run;
-    CE-APG's log-linear schedule over 2 iterations differs from the one over 4, and so does its run."""
+    CE-APG's log-linear schedule over 2 iterations differs from the one over 4, and so does its run. (The resume gets
+    the trainer the interrupted run built for the same config, task and policy, ``tests.helpers.reuse_trainers``,
+    instead of compiling its update again.)"""
+    reuse_trainers(monkeypatch)
     first, short_path, task, policy, steps = short_run(name)
     longer = dataclasses.replace(first.trainer.config, iterations=4)
     path = tmp_path / "run.eqx"
@@ -165,10 +168,14 @@ def test_a_nan_in_the_training_state_stops_the_run_before_it_is_checkpointed(tmp
     assert checkpoint.read_header(path)["iteration"] == 1
 
 
-def test_train_refuses_what_does_not_fit_before_any_work():
+def test_train_refuses_what_does_not_fit_before_any_work(short_run, monkeypatch):
     """A key that is not one PRNG key, no evaluation episodes, and a policy built for another task (another
-    observation or action size) are refused by name before anything is compiled or written."""
-    cfg, task, policy, _ = small_problem("APGConfig")
+    observation or action size) are refused by name before anything is compiled or written. (The runs that are not
+    refused train the ``short_run`` fixture's APG problem with its trainer, ``tests.helpers.reuse_trainers``: compiled
+    once for the tests of optim.)"""
+    result, _, task, policy, _ = short_run("APGConfig")
+    cfg = result.trainer.config
+    reuse_trainers(monkeypatch, (result.trainer, policy))
     cases = [
         (dict(key=0), r"train: key must be one PRNG key \(jax\.random\.PRNGKey\(seed\) or jax\.random\.key"),
         (dict(key=jax.random.split(RUN_KEY, 2)), r"train: key must be one PRNG key"),
