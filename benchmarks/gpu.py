@@ -32,21 +32,19 @@ import re
 import subprocess
 import time
 
+import equinox as eqx
 import jax
+import jax.numpy as jnp
 
-
-import equinox as eqx  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
-import numpy as np  # noqa: E402
-
-import lagrange as lg  # noqa: E402
-from benchmarks._cli import REPO, gymnasium_model, markdown_table, outputs  # noqa: E402
-from benchmarks._engines import brax_rollout, mjx_rollout  # noqa: E402
-from benchmarks._timing import median_time  # noqa: E402
-from benchmarks.throughput import LEGGED, _jax_pair, _legged_inputs, legged_model  # noqa: E402
-from lagrange.interop.mjcf import from_mjcf  # noqa: E402
-from optim.checkpoint import write_json  # noqa: E402
-from oracles import closed_form as cf  # noqa: E402
+import lagrange as lg
+from benchmarks._cli import REPO, gymnasium_model, markdown_table, outputs
+from benchmarks._engines import brax_rollout, mjx_rollout
+from benchmarks._timing import median_time
+from benchmarks.throughput import LEGGED, _jax_pair, _legged_inputs, legged_model
+from benchmarks.throughput import _inputs as _inputs64  # float64 draws, cast per table
+from lagrange.interop.mjcf import from_mjcf
+from optim.checkpoint import write_json
+from oracles import closed_form as cf
 
 SECTIONS = ("acrobot", "scaling", "legged", "shac", "ppo")
 REPEATS = 5
@@ -101,9 +99,9 @@ def _cast(tree, dtype):
     return jax.tree_util.tree_map(lambda x: x.astype(dtype) if eqx.is_inexact_array(x) else x, tree)
 
 
-def _inputs(n, m, B, T, dtype, seed=0):
-    rng = np.random.default_rng(seed)
-    return tuple(jnp.asarray(rng.uniform(-1, 1, shape), dtype) for shape in ((B, n), (B, n), (B, T, m)))
+def _inputs(n, m, B, T, dtype):
+    """``benchmarks/throughput.py``'s inputs ``(q0, qd0, us)`` in ``dtype``."""
+    return _cast(_inputs64(n, m, B, T), dtype)
 
 
 def _lagrange(chain, solver, dt, argnums):
@@ -152,10 +150,10 @@ def _acrobot_rows(s, dtype, batches, T, dt):
         args = _inputs(2, 1, B, T, dtype)
         for name, pair in engines.items():
             rows += _rows("acrobot", name, pair, args, T, dtype)
-    args = _inputs(2, 1, s["acrobot_peer_batch"], T, dtype)
-    params = cf.acrobot.Params()
     if dtype == jnp.float64 and s is not FULL:
         return rows
+    args = _inputs(2, 1, s["acrobot_peer_batch"], T, dtype)
+    params = cf.acrobot.Params()
     peers = {"mjx_euler": _jax_pair(mjx_rollout(chain, dt))}
     if dtype == jnp.float32:
         peers["closed_form_rk4"] = _jax_pair(
@@ -192,7 +190,7 @@ def legged_rows(s):
             args = _cast((q0, qd0, us[:, :T]), jnp.float32)
             for e, pair in engines.items():  # MJX's gradient through its contact solver: not run (memory)
                 # --small: lagrange's gradient in free flight only (the hopper's on the ground compiles for long)
-                gradient = (e == "lagrange_sie" and (s is FULL or not constraints)) or (not constraints and s is FULL)
+                gradient = (s is FULL or not constraints) if e == "lagrange_sie" else (s is FULL and not constraints)
                 rows += _rows("legged", e, pair, args, T, jnp.float32, gradient=gradient, model=name,
                               states_touching_in_mujoco=touching)
     return rows
