@@ -88,8 +88,13 @@ def bias_forces(chain: Chain, q, qd):
     return out
 
 
-def forward_dynamics(chain: Chain, q, qd, u=None):
-    tau = jnp.zeros_like(q)
+def accelerations(chain: Chain, M, bias, u=None):
+    """``qdd`` solving ``M qdd = B u - bias`` for the mass matrix and bias forces given (``jnp.linalg.solve``)."""
+    tau = jnp.zeros(bias.shape, bias.dtype)
     if u is not None and chain.m:
         tau = tau.at[jnp.array(chain.actuated)].add(chain.gear * u)
-    return jnp.linalg.solve(mass_matrix(chain, q), tau - bias_forces(chain, q, qd))
+    return jnp.linalg.solve(M, tau - bias)
+
+
+def forward_dynamics(chain: Chain, q, qd, u=None):
+    return accelerations(chain, mass_matrix(chain, q), bias_forces(chain, q, qd), u)

@@ -331,3 +331,13 @@ def reuse_trainers(monkeypatch, *known):
             classes.append(cls)
     for cls in classes:
         monkeypatch.setattr(cls, "make_trainer", reusing(vars(cls)["make_trainer"]))
+
+
+def oracle_terms(chain, q, qd):
+    """The Euler-Lagrange oracle's ``(M, bias, gravity)`` at one state, its gravity forces being its bias at rest.
+    The two bias forces are one ``bias_forces`` vmapped over the velocities ``qd`` and ``0``: the oracle's dense
+    Hessians are the costliest part of the tests that use it to compile, and this compiles them once, not twice."""
+    from oracles import euler_lagrange as el
+
+    bias = jax.vmap(lambda v: el.bias_forces(chain, q, v))(jnp.stack([qd, jnp.zeros_like(qd)]))
+    return el.mass_matrix(chain, q), bias[0], bias[1]

@@ -25,7 +25,7 @@ from jax.test_util import check_grads
 
 import lagrange as lg
 from lagrange.chain import Chain, Link
-from tests.helpers import REL, assert_close, per_state, random_chain, states
+from tests.helpers import REL, assert_close, oracle_terms, per_state, random_chain, states
 from oracles import closed_form as cf
 from oracles import euler_lagrange as el
 
@@ -106,23 +106,6 @@ def test_closed_forms_are_not_trivially_equal():
 SIZES = (1, 2, 3, 4, 7)  # 1-4 links take the relative-angle path, 7 the recursive one (lagrange.recursive)
 
 
-def _el_mass_bias_gravity(chain, q, qd):
-    """The oracle's M, its bias forces and its gravity forces (its bias at rest) at one state. The two bias forces
-    are one ``el.bias_forces`` evaluated at the velocities ``qd`` and ``0`` (vmapped): the oracle's dense Hessians
-    are the costliest part of these tests to compile, and this compiles them once instead of twice."""
-    bias = jax.vmap(lambda v: el.bias_forces(chain, q, v))(jnp.stack([qd, jnp.zeros_like(qd)]))
-    return el.mass_matrix(chain, q), (bias[0], bias[1])
-
-
-def _el_forward_dynamics(chain, M, bias, u):
-    """``el.forward_dynamics`` (its own lines: the controls through the gears, ``jnp.linalg.solve``) from the oracle's
-    M and bias already computed, instead of deriving both again inside it."""
-    tau = jnp.zeros(chain.n, M.dtype)
-    if u is not None and chain.m:
-        tau = tau.at[jnp.array(chain.actuated)].add(chain.gear * u)
-    return jnp.linalg.solve(M, tau - bias)
-
-
 @functools.cache
 def chain_results(n):
     """Everything the random-chain tests compare, computed in one compiled call per chain size."""
@@ -147,7 +130,7 @@ def chain_results(n):
             C = 0.5 * (
                 jnp.einsum("ijk,k->ij", dM, qd) + jnp.einsum("ikj,k->ij", dM, qd) - jnp.einsum("jki,k->ij", dM, qd)
             )
-            el_M, (el_bias, el_gravity) = _el_mass_bias_gravity(chain, q, qd)
+            el_M, el_bias, el_gravity = oracle_terms(chain, q, qd)
             return dict(
                 M=M,
                 bias=lg.bias_forces(chain, q, qd),
@@ -161,7 +144,7 @@ def chain_results(n):
                 el_M=el_M,
                 el_bias=el_bias,
                 el_gravity=el_gravity,
-                el_qdd=_el_forward_dynamics(chain, el_M, el_bias, uu),
+                el_qdd=el.accelerations(chain, el_M, el_bias, uu),
             )
 
         return jax.vmap(one)(q, qd, u)
@@ -196,7 +179,7 @@ def test_frame_offsets_and_off_line_coms_match_euler_lagrange(n):
     @jax.jit
     @jax.vmap
     def run(q, qd):
-        el_M, (el_bias, el_gravity) = _el_mass_bias_gravity(chain, q, qd)
+        el_M, el_bias, el_gravity = oracle_terms(chain, q, qd)
         out = {"el": (el_M, el_bias, el_gravity, sum(el.energy(chain, q, qd)), el.com_and_angles(chain, q)[0])}
         for mod in modules:
             out[mod.__name__] = (mod.mass_matrix(chain, q), mod.bias_forces(chain, q, qd), mod.gravity_forces(chain, q),

@@ -21,6 +21,7 @@ import lagrange as lg
 from lagrange import dynamics, recursive
 from lagrange.recursive.kinematics import LinkKinematics
 from tests.helpers import assert_close  # REL = 1e-12, as the docstring says
+from tests.helpers import oracle_terms
 from tests.helpers import random_chain as _random_chain
 from oracles import euler_lagrange as el
 
@@ -40,11 +41,8 @@ def states(rng, chain, k=8):
 
 def _quantities(module, chain, q, qd, u, h=0.05):
     """(M, bias, gravity, qdd, qdd with implicit damping h) for one state."""
-    if module is el:  # the oracle has no gravity_forces: the bias at rest; qdd solved by the caller
-        # its bias at qd and at rest from one bias_forces vmapped over the two velocities: the oracle's dense
-        # Hessians are the costliest part to compile (n = 12: ~4 s each), and this compiles them once
-        bias = jax.vmap(lambda v: el.bias_forces(chain, q, v))(jnp.stack([qd, jnp.zeros_like(qd)]))
-        return el.mass_matrix(chain, q), bias[0], bias[1], None, None
+    if module is el:  # the oracle has no gravity_forces: the bias at rest (tests.helpers); qdd solved by the caller
+        return (*oracle_terms(chain, q, qd), None, None)
     if module is recursive:
         fd = lambda h: recursive.forward_dynamics(chain, q, qd, u, implicit_damping_dt=h)  # noqa: E731
     else:
