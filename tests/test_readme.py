@@ -3,8 +3,8 @@
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-TEST_COMMAND = ('python3 -m venv .venv && . .venv/bin/activate && pip install -e ".[test]" && python -m pytest -n 2 '
-                '--dist worksteal tests')
+TEST_COMMAND = ('python3 -m venv .venv && . .venv/bin/activate && pip install uv && uv pip install -e ".[test]" '
+                '&& python -m pytest -n 2 --dist worksteal tests')
 RUN_COMMAND = "python3 -m venv .venv && . .venv/bin/activate && pip install -e . && python examples/acrobot_swingup.py"
 
 
@@ -12,7 +12,7 @@ def test_ci_runs_exactly_the_readme_test_command_then_lints_and_builds_the_docs(
     readme = (ROOT / "README.md").read_text()
     lines = (ROOT / ".ci" / "run").read_text().strip().splitlines()
     assert TEST_COMMAND in readme
-    assert lines[-3:] == [TEST_COMMAND, "ruff check .", 'pip install -e ".[docs]" && mkdocs build --strict']
+    assert lines[-3:] == [TEST_COMMAND, "ruff check .", 'uv pip install -e ".[docs]" && mkdocs build --strict']
 
 
 def test_readme_shows_the_main_job():

@@ -62,7 +62,8 @@ def sharded_runs():
     procs = {}
 
     def start(devices):
-        env = dict(os.environ, XLA_FLAGS=f"--xla_force_host_platform_device_count={devices}", JAX_PLATFORMS="cpu")
+        env = dict(os.environ, JAX_PLATFORMS="cpu",
+                   XLA_FLAGS=f"{os.environ['XLA_FLAGS']} --xla_force_host_platform_device_count={devices}")
         procs[devices] = subprocess.Popen([sys.executable, "-c", _SHARDED_RUNS], stdout=subprocess.PIPE,
                                           stderr=subprocess.PIPE, text=True, env=env, cwd=ROOT)
 
