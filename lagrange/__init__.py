@@ -1,7 +1,9 @@
-"""lagrange: exact, fast, differentiable dynamics of planar kinematic trees in pure JAX, with ground contact and joint
-limits by penalty forces."""
+"""lagrange: exact, fast, differentiable dynamics of kinematic trees in pure JAX: planar chains and trees (with ground
+contact and joint limits by penalty forces) and spatial trees of hinges, slides, balls and free joints."""
 
 from lagrange.chain import Chain, Link
+from lagrange.joints import Ball, Free, Hinge, Slide
+from lagrange.tree import Body, Motor, Tree
 from lagrange.contact import PenaltyContact
 from lagrange.limits import PenaltyLimits
 from lagrange.actuation import actuation_matrix, clamp_controls
@@ -20,6 +22,13 @@ from lagrange.solvers import RK4, Dopri5, Dopri8, Euler, SemiImplicitEuler, Symp
 from lagrange import systems
 
 __all__ = [
+    "Ball",
+    "Body",
+    "Free",
+    "Hinge",
+    "Motor",
+    "Slide",
+    "Tree",
     "RK4",
     "Dopri5",
     "Dopri8",

@@ -7,13 +7,14 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from lagrange.chain import Chain
+from lagrange.tree import Tree
 
 
-def clamp_controls(chain: Chain, u: Float[ArrayLike, "*batch m"]) -> Float[Array, "*batch m"]:
+def clamp_controls(chain: Chain | Tree, u: Float[ArrayLike, "*batch m"]) -> Float[Array, "*batch m"]:
     """Each control clamped into its joint's ``control_range``, as MuJoCo clamps a limited ``ctrl``.
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`.
+        chain: the :class:`~lagrange.chain.Chain` or :class:`~lagrange.tree.Tree`.
         u: controls, shape ``(*batch, m)``.
 
     Returns:
@@ -27,7 +28,7 @@ def clamp_controls(chain: Chain, u: Float[ArrayLike, "*batch m"]) -> Float[Array
     return jnp.clip(u, lo.astype(u.dtype), hi.astype(u.dtype))
 
 
-def actuation_matrix(chain: Chain) -> Float[Array, "n m"]:
+def actuation_matrix(chain: Chain | Tree) -> Float[Array, "n m"]:
     """The actuation matrix ``B``: ``B[actuated[k], k] = gear[k]``, zero elsewhere.
 
     Args:
@@ -37,7 +38,7 @@ def actuation_matrix(chain: Chain) -> Float[Array, "n m"]:
         ``B``, shape ``(n, m)``. A chain with control ranges applies ``B`` to the clamped control
         (:func:`clamp_controls`).
     """
-    B = jnp.zeros((chain.n, chain.m), dtype=chain.mass.dtype)
+    B = jnp.zeros((chain.n, chain.m), dtype=jnp.result_type(float) if chain.gear is None else chain.gear.dtype)
     for k, j in enumerate(chain.actuated):
         B = B.at[j, k].set(chain.gear[k])
     return B

@@ -50,6 +50,35 @@ def check_scalar(name: str, value, *, positive: bool = False, nonnegative: bool 
     return value
 
 
+def check_array(name: str, value, shape: tuple[int, ...] = (), *, nonnegative: bool = False):
+    """``value`` as a JAX array of the default float type and of ``shape`` (transferred from NumPy when concrete: no
+    JAX computation), checked real, finite and, with ``nonnegative``, ``>= 0``; a traced value is checked for its
+    shape only (:func:`check_parameters`-style checks see it when it is known). Errors name ``name``.
+
+    Raises:
+        TypeError: for ``None``, a bool, a string or anything that is not real numbers.
+        ValueError: for another shape, a non-finite entry or a negative one where ``nonnegative``.
+    """
+    what = "a real number" if shape == () else f"real numbers of shape {shape}"
+    if value is None or isinstance(value, (bool, np.bool_, str)):
+        raise TypeError(f"{name} must be {what}, got {value!r}")
+    if isinstance(value, jax.core.Tracer):
+        if jnp.shape(value) != shape:
+            raise ValueError(f"{name} must have shape {shape}, got {jnp.shape(value)}")
+        return value
+    try:
+        c = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise TypeError(f"{name} must be {what}, got {value!r}") from err
+    if c.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {c.shape}")
+    if not np.all(np.isfinite(c)):
+        raise ValueError(f"{name} must be finite, got {c.tolist()}")
+    if nonnegative and np.any(c < 0):
+        raise ValueError(f"{name} must be >= 0, got {c.tolist()}")
+    return jax.device_put(c.astype(jax.dtypes.canonicalize_dtype(float)))
+
+
 def check_pair(name: str, value) -> tuple[float, float] | None:
     """``None`` or ``(lo, hi)`` as floats with ``lo < hi``, both finite, else an error naming ``Link.name``."""
     if value is None:
@@ -292,6 +321,8 @@ def check_parameters(chain: eqx.Module, *, at_run_time: bool = True) -> eqx.Modu
         ValueError: (now) for a concrete parameter that breaks its rule.
         equinox.EquinoxRuntimeError: (when run) for a traced one.
     """
+    if hasattr(chain, "bodies"):  # a spatial tree
+        return _check_tree(chain, at_run_time)
     updates = {}
     for field, rule, broken in _RULES:
         x = _get(chain, field)
@@ -342,3 +373,29 @@ def _index_words(chain, field: str, where) -> str:
     if field == "contact_points":
         return f"[{where[0]}] (link {chain.contact_links[where[0]]})"
     return f"[{where[0]}] (link {where[0]})"
+
+
+_TREE_RULES = {"mass": (">= 0", lambda x: x < 0), "damping": (">= 0", lambda x: x < 0),
+               "armature": (">= 0", lambda x: x < 0), "stiffness": (">= 0", lambda x: x < 0),
+               "gear": ("> 0", lambda x: ~(x > 0))}
+
+
+def _check_tree(tree, at_run_time: bool):
+    """:func:`check_parameters` for a :class:`lagrange.tree.Tree`: every leaf finite, masses, damping, armature and
+    stiffness >= 0, gears > 0; errors name the leaf's path (``Tree.bodies[3].joints[0].damping``)."""
+    leaves, treedef = jax.tree_util.tree_flatten_with_path(tree)
+    out, changed = [], False
+    for path, x in leaves:
+        name = "Tree" + jax.tree_util.keystr(path)
+        rule, broken = _TREE_RULES.get(getattr(path[-1], "name", ""), ("finite", lambda v: v != v))
+        if not isinstance(x, jax.core.Tracer):
+            v = np.asarray(x, dtype=float)
+            if np.any(broken(v) | ~np.isfinite(v)):
+                raise ValueError(f"{name} must be {_words(rule)}, got {v.tolist()} (a value set after construction: "
+                                 "by eqx.tree_at, or traced)")
+        elif at_run_time:
+            x = eqx.error_if(x, jnp.any(broken(x) | ~jnp.isfinite(x)),
+                             f"{name} must be {_words(rule)} (a value traced or set after construction breaks it)")
+            changed = True
+        out.append(x)
+    return jax.tree_util.tree_unflatten(treedef, out) if changed else tree

@@ -40,10 +40,11 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float
 
-from lagrange import recursive, unrolled
+from lagrange import recursive, spatial, unrolled
 from lagrange.actuation import actuation_matrix
 from lagrange.chain import Chain
 from lagrange.checks import check_parameters
+from lagrange.tree import Tree
 
 __all__ = ["RECURSIVE_MIN", "SINGULAR", "actuation_matrix", "bias_forces", "energy", "forward_dynamics",
            "forward_dynamics_and_pivots", "gravity_forces", "inverse_dynamics", "mass_matrix"]
@@ -71,7 +72,9 @@ def _prepared(chain: Chain, *, at_run_time: bool = True) -> Chain:
     return _folded(check_parameters(chain, at_run_time=at_run_time))
 
 
-def _check(chain: Chain, name: str, x, size: int):
+def _check(chain: Chain | Tree, name: str, x, size: int | None = None):
+    if size is None:  # q has nq entries, qd and qdd nv, u m
+        size = {"q": getattr(chain, "nq", chain.n), "u": chain.m}.get(name, chain.n)
     shape = jnp.shape(x)
     if len(shape) == 0 or shape[-1] != size:
         what = " (the chain has no actuated joint: pass u=None)" if name == "u" and size == 0 else ""
@@ -105,7 +108,7 @@ depend on the batch size)."""
 
 
 def _recursive(chain: Chain) -> bool:
-    return chain.n >= RECURSIVE_MIN
+    return not isinstance(chain, Tree) and chain.n >= RECURSIVE_MIN
 
 
 SINGULAR = (
@@ -126,8 +129,10 @@ def mass_matrix(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "
     Returns:
         ``M``, shape ``(*batch, n, n)`` [kg m^2, kg m or kg].
     """
-    _check(chain, "q", q, chain.n)
+    _check(chain, "q", q)
     chain = _prepared(chain)
+    if isinstance(chain, Tree):
+        return spatial.mass_matrix(chain, jnp.asarray(q))
     if _recursive(chain):
         return recursive.mass_matrix(chain, q)
     return unrolled.mass_matrix(chain, q)
@@ -151,9 +156,11 @@ def bias_forces(
     Returns:
         Shape ``(*batch, n)`` [N m or N].
     """
-    _check(chain, "q", q, chain.n)
-    _check(chain, "qd", qd, chain.n)
+    _check(chain, "q", q)
+    _check(chain, "qd", qd)
     chain = _prepared(chain)
+    if isinstance(chain, Tree):
+        return spatial.bias_forces(chain, jnp.asarray(q), jnp.asarray(qd))
     if _recursive(chain):
         return recursive.bias_forces(chain, q, qd)
     return unrolled.bias_forces(chain, q, qd)
@@ -169,8 +176,10 @@ def gravity_forces(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array
     Returns:
         Shape ``(*batch, n)`` [N m or N].
     """
-    _check(chain, "q", q, chain.n)
+    _check(chain, "q", q)
     chain = _prepared(chain)
+    if isinstance(chain, Tree):
+        return spatial.gravity_forces(chain, jnp.asarray(q))
     if _recursive(chain):
         return recursive.gravity_forces(chain, q)
     return unrolled.gravity_forces(chain, q)
@@ -243,11 +252,14 @@ def forward_dynamics_and_pivots(
 
 
 def _forward(chain: Chain, q, qd, u, implicit_damping_dt, *, pivots: bool, at_run_time: bool):
-    _check(chain, "q", q, chain.n)
-    _check(chain, "qd", qd, chain.n)
+    _check(chain, "q", q)
+    _check(chain, "qd", qd)
     if u is not None:
-        _check(chain, "u", u, chain.m)
+        _check(chain, "u", u)
     chain = _prepared(chain, at_run_time=at_run_time)
+    if isinstance(chain, Tree):
+        return spatial.forward_dynamics(chain, jnp.asarray(q), jnp.asarray(qd), None if u is None else jnp.asarray(u),
+                                        implicit_damping_dt, pivots=pivots)
     if _recursive(chain):
         return recursive.forward_dynamics(chain, q, qd, u, implicit_damping_dt=implicit_damping_dt, pivots=pivots)
     return unrolled.forward_dynamics(chain, q, qd, u, implicit_damping_dt, pivots=pivots)
@@ -270,11 +282,13 @@ def inverse_dynamics(
     Returns:
         Shape ``(*batch, n)`` [N m or N]; equal to ``B u`` when ``qdd = forward_dynamics(chain, q, qd, u)``.
     """
-    _check(chain, "qdd", qdd, chain.n)
+    _check(chain, "qdd", qdd)
     chain = check_parameters(chain)
-    if _recursive(chain):
-        _check(chain, "q", q, chain.n)
-        _check(chain, "qd", qd, chain.n)
+    if isinstance(chain, Tree) or _recursive(chain):
+        _check(chain, "q", q)
+        _check(chain, "qd", qd)
+        if isinstance(chain, Tree):
+            return spatial.inverse_dynamics(_folded(chain), jnp.asarray(q), jnp.asarray(qd), jnp.asarray(qdd))
         return recursive.inverse_dynamics(chain, q, qd, qdd)
     return jnp.einsum("...ij,...j->...i", mass_matrix(chain, q), qdd) + bias_forces(chain, q, qd)
 
@@ -294,9 +308,11 @@ def energy(
         origin at z = 0), plus the joint springs' ``1/2 K (q - q_ref)^2``, the limits' ``1/2 ke (q - bound)^2`` outside
         the ranges and the contact's ``1/2 ke d^2`` of the points below the ground.
     """
-    _check(chain, "q", q, chain.n)
-    _check(chain, "qd", qd, chain.n)
+    _check(chain, "q", q)
+    _check(chain, "qd", qd)
     chain = check_parameters(chain)
+    if isinstance(chain, Tree):
+        return spatial.energy(_folded(chain), jnp.asarray(q), jnp.asarray(qd))
     if _recursive(chain):
         return recursive.energy(chain, q, qd)
     return unrolled.energy(chain, q, qd)

@@ -26,12 +26,12 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
+from lagrange import spatial
 from lagrange.chain import Chain
 from lagrange.checks import check_parameters
-from lagrange._linalg import spd_solver
-from lagrange.actuation import actuation_matrix, clamp_controls
-from lagrange.dynamics import bias_forces, energy, forward_dynamics, gravity_forces, mass_matrix
-from lagrange.solvers import RK4, SemiImplicitEuler, SymplecticEuler, check_solver, is_adaptive_capable
+from lagrange.solvers import RK4, SemiImplicitEuler, SymplecticEuler, check_solver
+from lagrange.stepping import interval_map
+from lagrange.tree import Tree
 
 
 class Trajectory(eqx.Module):
@@ -104,166 +104,23 @@ def _real_array(name: str, x):
     return x
 
 
-def _needed_stages(tableau) -> list[bool]:
-    b = np.asarray(tableau.b_sol)
-    s = len(b)
-    need = [bool(b[i] != 0) for i in range(s)]
-    for i in reversed(range(1, s)):
-        if need[i]:
-            for j, a in enumerate(np.asarray(tableau.a_lower[i - 1])):
-                if a != 0:
-                    need[j] = True
-    return need
-
-
-def _axpy(y, h, coeffs, ks):
-    """y + h * sum_j coeffs[j] * ks[j], skipping zero coefficients (tuples of arrays)."""
-    out = list(y)
-    for c, k in zip(coeffs, ks):
-        c = float(c)
-        if c == 0.0:
-            continue
-        w = h * c
-        out = [o + w * kk for o, kk in zip(out, k)]
-    return tuple(out)
-
-
-def _erk_step(f, tableau, h, y):
-    need = _needed_stages(tableau)
-    ks = [None] * len(need)
-    for i, needed in enumerate(need):
-        if not needed:
-            continue
-        yi = y if i == 0 else _axpy(y, h, tableau.a_lower[i - 1], ks[:i])
-        ks[i] = f(yi)
-    return _axpy(y, h, tableau.b_sol, ks)
-
-
-def _symplectic_euler_step(chain: Chain, iterations: int, h, q, qd, u):
-    """One step of :class:`lagrange.SymplecticEuler` (see its docstring for the scheme)."""
-    M = mass_matrix(chain, q)
-    p = jnp.einsum("...ij,...j->...i", M, qd)
-    force = -gravity_forces(chain, q)
-    if chain.stiffness is not None:  # the joint springs, a potential force like gravity
-        force = force - chain.stiffness * (q - chain.springref)
-    if u is not None and chain.m:
-        force = force + jnp.einsum("ij,...j->...i", actuation_matrix(chain), u)
-    A = M if chain.damping is None else M + h * jnp.diag(chain.damping)
-    solve = spd_solver(A)
-    # dT/dq at fixed v; the sum over a batch leaves each state's gradient its own
-    dkin_dq = jax.grad(lambda q_, v: jnp.sum(energy(chain, q_, v)[0]))
-    v = qd
-    for _ in range(iterations):
-        v = solve(p + h * (force + dkin_dq(q, v)))
-    q1 = q + h * v
-    p1 = jnp.einsum("...ij,...j->...i", M, v)
-    return q1, spd_solver(mass_matrix(chain, q1))(p1)
-
-
-def _fixed_substep(chain: Chain, solver, h, q, qd, u):
-    if isinstance(solver, SymplecticEuler):
-        return _symplectic_euler_step(chain, solver.iterations, h, q, qd, u)
-    if isinstance(solver, SemiImplicitEuler):
-        qdd = forward_dynamics(chain, q, qd, u, implicit_damping_dt=h if solver.implicit_damping else None,
-                               check=False)
-        qd1 = qd + h * qdd
-        return q + h * qd1, qd1
-
-    def f(y):
-        return (y[1], forward_dynamics(chain, y[0], y[1], u, check=False))
-
-    if isinstance(solver, diffrax.Euler):
-        qdd = f((q, qd))[1]
-        return q + h * qd, qd + h * qdd
-    return _erk_step(f, solver.tableau, h, (q, qd))
-
-
-def _held_mass_matrix_interval(chain: Chain, solver: SemiImplicitEuler, h, substeps: int):
-    """Semi-implicit Euler with ``M`` (``+ h diag(damping)`` with implicit damping) formed and Cholesky-factored once
-    at the interval's start and used by every substep; the forces ``B u - bias`` of every substep's own state. (An
-    LDL^T unrolled over the entries ran as fast and compiled 4x longer for the cheetah's 9 dof.)"""
-
-    def interval(q, qd, u):
-        M = mass_matrix(chain, q)
-        if solver.implicit_damping and chain.damping is not None:
-            M = M + h * jnp.diag(chain.damping)
-        solve = spd_solver(M)
-        Bu = 0.0 if u is None or not chain.m else jnp.einsum("ij,...j->...i", actuation_matrix(chain),
-                                                             clamp_controls(chain, u))
-
-        def body(carry, _):
-            q, qd = carry
-            qdd = solve(Bu - bias_forces(chain, q, qd))
-            qd1 = qd + h * qdd
-            return (q + h * qd1, qd1), None
-
-        return jax.lax.scan(body, (q, qd), None, length=substeps)[0]
-
-    return interval
-
-
-def _interval(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps):
-    """The map (q, qd, u) -> (q, qd) over one control interval."""
-    adaptive = rtol is not None or atol is not None
-    if adaptive:
-        if rtol is None or atol is None:
-            raise ValueError("adaptive stepping needs both rtol and atol (positive floats), got only one")
-        if not (rtol > 0 and atol > 0):
-            raise ValueError(f"rtol and atol must be > 0, got rtol={rtol}, atol={atol}")
-        if not is_adaptive_capable(solver):
-            raise ValueError(
-                f"{type(solver).__name__} has no embedded error estimate, so rtol/atol cannot be used; "
-                "use Tsit5(), Dopri5() or Dopri8() for adaptive steps, or drop rtol/atol"
-            )
-    if isinstance(solver, (SemiImplicitEuler, SymplecticEuler)) and adjoint is not None:
-        raise ValueError(f"{type(solver).__name__} runs outside diffeqsolve; pass adjoint=None")
-    h = dt / substeps
-
-    if isinstance(solver, SemiImplicitEuler) and solver.hold_mass_matrix:
-        return _held_mass_matrix_interval(chain, solver, h, substeps)
-
-    if not adaptive and adjoint is None:
-
-        def interval(q, qd, u):
-            if substeps == 1:
-                return _fixed_substep(chain, solver, h, q, qd, u)
-
-            def body(carry, _):
-                return _fixed_substep(chain, solver, h, *carry, u), None
-
-            return jax.lax.scan(body, (q, qd), None, length=substeps)[0]
-
-        return interval
-
-    term = diffrax.ODETerm(lambda t, y, u: (y[1], forward_dynamics(chain, y[0], y[1], u, check=False)))
-    controller = (
-        diffrax.PIDController(rtol=rtol, atol=atol) if adaptive else diffrax.ConstantStepSize()
-    )
-    adj = adjoint if adjoint is not None else diffrax.RecursiveCheckpointAdjoint()
-
-    def interval(q, qd, u):
-        sol = diffrax.diffeqsolve(
-            term,
-            solver,
-            0.0,
-            dt,
-            h,
-            (q, qd),
-            args=u,
-            stepsize_controller=controller,
-            adjoint=adj,
-            saveat=diffrax.SaveAt(t1=True),
-            max_steps=max_steps if adaptive else substeps,
-        )
-        return sol.ys[0][0], sol.ys[1][0]
-
-    return interval
+def _unit_quaternions(tree: Tree, q):
+    """``q`` with its quaternions normalised (MuJoCo reads them so); a concrete zero quaternion is refused."""
+    if not isinstance(q, jax.core.Tracer):
+        for link, j in enumerate(tree.joints):
+            if j.nq > j.nv:
+                quat = np.asarray(q)[tree.qadr[link] + j.nq - 4: tree.qadr[link] + j.nq]
+                if not np.linalg.norm(quat) > 1e-12:
+                    raise ValueError(f"q0[{tree.qadr[link] + j.nq - 4}:{tree.qadr[link] + j.nq}] is joint {link}'s "
+                                     f"quaternion and must not be zero (any non-zero length is normalised), got "
+                                     f"{quat.tolist()}")
+    return spatial.normalize_quaternions(tree, q)
 
 
 def _check_state(chain, q, qd):
-    for name, x in (("q0", q), ("qd0", qd)):
-        if jnp.shape(x) != (chain.n,):
-            raise ValueError(f"{name} must have shape ({chain.n},) for this chain, got {jnp.shape(x)}")
+    for name, x, size in (("q0", q, getattr(chain, "nq", chain.n)), ("qd0", qd, chain.n)):
+        if jnp.shape(x) != (size,):
+            raise ValueError(f"{name} must have shape ({size},) for this chain, got {jnp.shape(x)}")
 
 
 def simulate(
@@ -288,9 +145,10 @@ def simulate(
 
     Args:
         chain: the :class:`~lagrange.chain.Chain`.
-        q0: initial joint coordinates [rad or m], shape ``(n,)``; integers and lower-precision floats are
-            converted to the chain's float dtype, booleans and complex numbers refused.
-        qd0: initial joint velocities [rad/s or m/s], shape ``(n,)``; converted as ``q0``.
+        q0: initial joint coordinates [rad or m], shape ``(n,)`` (a tree's: ``(nq,)``, its quaternions normalised
+            here, a zero one refused); integers and lower-precision floats are converted to the chain's float
+            dtype, booleans and complex numbers refused.
+        qd0: initial joint velocities [rad/s or m/s], shape ``(n,)`` (a tree's: ``(nv,)``); converted as ``q0``.
         controls: an array ``(T >= 1, m)`` held constant over each interval, or a policy
             ``controls(t, q, qd) -> u`` of shape ``(m,)`` evaluated at each interval's start
             (then ``steps=T`` is required). ``None`` for an unactuated chain (with ``steps``).
@@ -321,8 +179,8 @@ def simulate(
             controls.
         equinox.EquinoxRuntimeError: (when run, with ``check=True``) if the final state is not finite.
     """
-    if not isinstance(chain, Chain):
-        raise TypeError(f"chain must be a lagrange.chain.Chain, got {type(chain).__name__}")
+    if not isinstance(chain, (Chain, Tree)):
+        raise TypeError(f"chain must be a lagrange.chain.Chain or a lagrange.tree.Tree, got {type(chain).__name__}")
     check_solver(solver)
     _check_dt(dt)
     _check_substeps(substeps)
@@ -334,10 +192,12 @@ def simulate(
     us = _real_array("controls", controls) if arrays else None
     dtype = _float_dtype(chain, q0, qd0, us)
     q0, qd0 = q0.astype(dtype), qd0.astype(dtype)
+    if isinstance(chain, Tree):
+        q0 = _unit_quaternions(chain, q0)
     chain = check_parameters(chain, at_run_time=check)  # once, before the loop (concrete ones while tracing)
     if check:
         q0, qd0, us = (_finite(name, x) for name, x in (("q0", q0), ("qd0", qd0), ("controls", us)))
-    interval = _interval(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps)
+    interval = interval_map(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps)
     if checkpoint and adjoint is None and rtol is None and atol is None:
         interval = jax.checkpoint(interval)
 
@@ -389,7 +249,7 @@ def simulate(
             "point mass as the joints align) does this too: give the links an inertia > 0 or the joints an "
             "armature > 0",
         )
-        qT, qdT = last[: chain.n], last[chain.n :]
+        qT, qdT = last[: qT.shape[0]], last[qT.shape[0]:]
     q = jnp.concatenate([q0[None], qs[:-1], qT[None]])
     qd = jnp.concatenate([qd0[None], qds[:-1], qdT[None]])
     t = jnp.arange(q.shape[0], dtype=q.dtype) * dt
@@ -442,4 +302,4 @@ def step(
     u = None if u is None else _real_array("u", u)
     dtype = _float_dtype(chain, q, qd, u)
     q, qd, u = q.astype(dtype), qd.astype(dtype), None if u is None else u.astype(dtype)
-    return _interval(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps)(q, qd, u)
+    return interval_map(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps)(q, qd, u)

@@ -13,6 +13,8 @@ from typing import NamedTuple
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
+from lagrange import spatial
+from lagrange.tree import Tree
 from lagrange import _scalar as s
 from lagrange._jet import Jet, sincos
 from lagrange._scalar import cos_sin
@@ -125,7 +127,10 @@ def _along(sin_phi, cos_phi, off: float, c_d, c_e):
 
 def positions(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch n+1 2"]:
     """Joint origins and the last link's tip [m] as (x, z) rows, shape ``(*batch, n + 1, 2)``, at joint coordinates
-    ``q`` [rad or m] of shape ``(*batch, n)``; for plotting (a tree's other tips: :func:`tip_positions`)."""
+    ``q`` [rad or m] of shape ``(*batch, n)``; for plotting (a tree's other tips: :func:`tip_positions`). For a
+    spatial :class:`~lagrange.tree.Tree`: every body's origin in the world, ``(*batch, bodies, 3)``."""
+    if isinstance(chain, Tree):
+        return spatial.positions(chain, jnp.asarray(q))
     f = frames(chain, q)
     pts = f.origin + [f.tip]
     like = q[..., 0]
@@ -137,7 +142,9 @@ def positions(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*b
 
 def com_positions(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch n 2"]:
     """Centres of mass [m] as (x, z) rows, shape ``(*batch, n, 2)``, at joint coordinates ``q`` [rad or m] of shape
-    ``(*batch, n)``."""
+    ``(*batch, n)``. For a spatial :class:`~lagrange.tree.Tree`: every body's in the world, ``(*batch, bodies, 3)``."""
+    if isinstance(chain, Tree):
+        return spatial.com_positions(chain, jnp.asarray(q))
     f = frames(chain, q)
     like = q[..., 0]
     return jnp.stack(

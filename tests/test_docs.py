@@ -73,3 +73,11 @@ def test_contact_page_snippet_runs():
     assert float(jnp.min(traj.q[:, 1])) < 0.0  # it landed: the feet sank below their starting height's 10 cm
     assert s["kinetic"].shape == s["potential"].shape == (301,)
     assert np.isfinite(float(s["dke"])) and float(s["dke"]) != 0.0  # the contact is felt
+
+
+def test_spatial_trees_page_snippets_run():
+    s = run_page("trees3d.md")
+    tree, traj = s["tree"], s["traj"]
+    assert (tree.nq, tree.nv, tree.m) == (12, 10, 1) and traj.q.shape == (201, 12) and traj.qd.shape == (201, 10)
+    np.testing.assert_allclose(np.linalg.norm(np.asarray(traj.q)[:, 3:7], axis=1), 1.0, rtol=0, atol=1e-14)
+    assert isinstance(s["humanoid"], lg.Tree) and s["humanoid"].nv == 23

@@ -17,7 +17,10 @@ import numpy as np
 from lagrange.chain import WORLD, Chain, Link
 from lagrange.contact import PenaltyContact
 from lagrange.limits import PenaltyLimits
+from lagrange.interop.mjcf.refusals import contact_pairs, element_name, is_limited, refuse
 from lagrange.interop.mjcf.runtime import compile_model, import_mujoco
+from lagrange.interop.mjcf.tree_reader import tree_from_model
+from lagrange.tree import Tree
 
 LIMITS = ("raise", "ignore")
 """What :func:`from_mjcf` does with a limited joint: refuse the model, or load it without the limit."""
@@ -28,165 +31,11 @@ CONTACTS = ("raise", "ignore")
 _TOL = 1e-9  # a geometric tolerance [m or rad]: parallel axes, in-plane directions, zero lengths
 
 
-def _name(mujoco, model, kind, i) -> str:
-    name = mujoco.mj_id2name(model, getattr(mujoco.mjtObj, f"mjOBJ_{kind.upper()}"), i)
-    return f"{kind} {name!r}" if name else f"{kind} #{i}"
-
-
-def _refuse(mujoco, model, limits: str, contact: str) -> None:
-    """Raise for whatever a planar chain cannot reproduce exactly, naming the feature, the element and the way out."""
-    off = model.opt.disableflags
-    bit = mujoco.mjtDisableBit
-    constraints = not off & bit.mjDSBL_CONSTRAINT
-    nm = lambda kind, i: _name(mujoco, model, kind, i)  # noqa: E731
-    if model.nq == 0:
-        raise ValueError("from_mjcf: the model has no joint; a chain needs at least one hinge or slide")
-    for j in range(model.njnt):
-        kind = mujoco.mjtJoint(model.jnt_type[j])
-        if kind not in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
-            raise NotImplementedError(
-                f"from_mjcf: {nm('joint', j)} is a {kind.name[6:].lower()} joint; a planar chain has hinges and slides "
-                "only (model the motion with hinges and slides in one plane)"
-            )
-        if _limited(mujoco, model, j) and isinstance(limits, str) and limits == "raise":
-            raise ValueError(
-                f"from_mjcf: {nm('joint', j)} is limited (range {model.jnt_range[j].tolist()}). from_mjcf(..., "
-                "limits=lagrange.PenaltyLimits(ke, kd)) loads it with penalty limits, limits=\"ignore\" without them "
-                "(exact while the joint stays inside its range)"
-            )
-    for d in range(model.nv):
-        if model.dof_frictionloss[d] != 0 and constraints and not off & bit.mjDSBL_FRICTIONLOSS:
-            raise NotImplementedError(
-                f"from_mjcf: {nm('joint', model.dof_jntid[d])} has frictionloss {model.dof_frictionloss[d]} (dry "
-                "friction, a constraint); set frictionloss=\"0\" or disable it (<flag frictionloss=\"disable\"/>)"
-            )
-    if model.ntendon:
-        raise NotImplementedError(f"from_mjcf: the model has {model.ntendon} tendon(s) ({nm('tendon', 0)}); a planar "
-                                  "chain has none: remove them")
-    if model.neq and constraints and not off & bit.mjDSBL_EQUALITY:
-        raise NotImplementedError(f"from_mjcf: the model has {model.neq} equality constraint(s) ({nm('equality', 0)}); "
-                                  "a serial chain has none: remove them or disable equality "
-                                  "(<flag equality=\"disable\"/>)")
-    if np.any(model.body_gravcomp != 0):
-        b = int(np.flatnonzero(model.body_gravcomp)[0])
-        raise NotImplementedError(f"from_mjcf: {nm('body', b)} has gravcomp {model.body_gravcomp[b]}; remove it")
-    if model.opt.density != 0 or model.opt.viscosity != 0 or np.any(model.opt.wind != 0):
-        raise NotImplementedError("from_mjcf: the model has fluid forces (option density, viscosity or wind non-zero); "
-                                  "set them to 0")
-    if off & bit.mjDSBL_ACTUATION and model.nu:
-        raise NotImplementedError("from_mjcf: actuation is disabled (<flag actuation=\"disable\"/>) but the model has "
-                                  "actuators; remove them or enable actuation")
-    for a in range(model.nu):
-        motor = (
-            model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
-            and model.actuator_dyntype[a] == mujoco.mjtDyn.mjDYN_NONE
-            and model.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_FIXED
-            and model.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_NONE
-        )
-        if not motor:
-            raise NotImplementedError(
-                f"from_mjcf: {nm('actuator', a)} is not a motor on a joint (force = gain * ctrl, no dynamics, "
-                "no bias); a chain's actuators are motors: replace it with <motor joint=... gear=...>"
-            )
-        if model.actuator_forcelimited[a]:
-            raise NotImplementedError(f"from_mjcf: {nm('actuator', a)} is force-limited; the chain clamps controls "
-                                      "(ctrlrange) but not forces: remove forcerange or express it as a ctrlrange")
-        if model.actuator_gear[a, 0] * model.actuator_gainprm[a, 0] <= 0:
-            raise NotImplementedError(
-                f"from_mjcf: {nm('actuator', a)} has gear * gain = "
-                f"{model.actuator_gear[a, 0] * model.actuator_gainprm[a, 0]}"
-                "; a chain's gears are > 0: flip the joint's axis or the gear's sign in the model"
-            )
-    joints = model.actuator_trnid[: model.nu, 0]
-    if len(set(joints.tolist())) < len(joints):
-        j = int(next(x for x in joints if list(joints).count(x) > 1))
-        raise NotImplementedError(f"from_mjcf: {nm('joint', j)} has more than one actuator; a chain's joint has one "
-                                  "motor: merge them")
-    order = [int(j) for j in joints]
-    for a in range(1, len(order)):
-        if order[a] < order[a - 1]:
-            raise NotImplementedError(
-                f"from_mjcf: {nm('actuator', a)} drives {nm('joint', order[a])}, before {nm('actuator', a - 1)}'s "
-                f"{nm('joint', order[a - 1])}: with u = ctrl a chain's actuators are declared in joint order; reorder "
-                "the <actuator> elements"
-            )
-    if isinstance(contact, str) and contact == "raise":
-        _refuse_contacts(mujoco, model, nm)
-
-
-def _limited(mujoco, model, j) -> bool:
-    """Whether MuJoCo enforces joint ``j``'s range (limited, and neither constraints nor limits disabled)."""
-    off = model.opt.disableflags
-    bit = mujoco.mjtDisableBit
-    return bool(model.jnt_limited[j]) and not off & bit.mjDSBL_CONSTRAINT and not off & bit.mjDSBL_LIMIT
-
-
-def _refuse_contacts(mujoco, model, nm) -> None:
-    """Refuse a model in which a contact can occur: one explicit ``<pair>``, or two geoms whose contype/conaffinity
-    bits match and that MuJoCo's body filters do not exclude (the same rules as its collision driver); the message
-    names every pair that can touch (the first few) and the ways out."""
-    off = model.opt.disableflags
-    bit = mujoco.mjtDisableBit
-    if off & bit.mjDSBL_CONSTRAINT or off & bit.mjDSBL_CONTACT:
-        return
-    way_out = ("from_mjcf(..., contact=lagrange.PenaltyContact(ke, kd, kf, mu)) loads it with penalty ground contact, "
-               "contact=\"ignore\" without contact (exact while nothing touches); or disable "
-               "contacts in the model (<option><flag contact=\"disable\"/></option>) or set contype=\"0\" "
-               "conaffinity=\"0\" on the geoms")
-    if model.npair:
-        raise NotImplementedError(f"from_mjcf: the model has {model.npair} explicit contact pair(s) and the chain has "
-                                  f"no contact; {way_out}")
-    pairs = contact_pairs(mujoco, model)
-    if pairs:
-        shown = ", ".join(f"{nm('geom', g1)} and {nm('geom', g2)}" for g1, g2 in pairs[:4])
-        more = f" and {len(pairs) - 4} more pair(s)" if len(pairs) > 4 else ""
-        raise NotImplementedError(f"from_mjcf: geoms can touch ({shown}{more}) and the chain has no contact; "
-                                  f"{way_out}")
-
-
-def contact_pairs(mujoco, model) -> list[tuple[int, int]]:
-    """Every pair of geoms that MuJoCo's collision driver would test.
-
-    Its rules: contype/conaffinity bits that match, not on one rigid body, not parent and child (unless
-    ``filterparent`` is disabled), not excluded by an ``<exclude>``.
-
-    Args:
-        mujoco: the ``mujoco`` module.
-        model: the compiled ``mujoco.MjModel``.
-
-    Returns:
-        The pairs ``(g1, g2)`` of geom indices, ``g1 < g2``, in order.
-    """
-    off = model.opt.disableflags
-    bit = mujoco.mjtDisableBit
-    excluded = {(int(model.exclude_signature[k] >> 16), int(model.exclude_signature[k] & 0xFFFF))
-                for k in range(model.nexclude)}
-    weld = model.body_weldid
-    parent_weld = weld[model.body_parentid]
-    filter_parent = not off & bit.mjDSBL_FILTERPARENT
-    out = []
-    for g1 in range(model.ngeom):
-        for g2 in range(g1 + 1, model.ngeom):
-            if not (model.geom_contype[g1] & model.geom_conaffinity[g2]
-                    or model.geom_contype[g2] & model.geom_conaffinity[g1]):
-                continue
-            b1, b2 = model.geom_bodyid[g1], model.geom_bodyid[g2]
-            w1, w2 = weld[b1], weld[b2]
-            if w1 == w2:
-                continue
-            if filter_parent and w1 != 0 and w2 != 0 and (w1 == parent_weld[b2] or w2 == parent_weld[b1]):
-                continue
-            if (min(b1, b2), max(b1, b2)) in excluded or (max(b1, b2), min(b1, b2)) in excluded:
-                continue
-            out.append((g1, g2))
-    return out
-
-
 def _plane(mujoco, model, data):
     """The chain's plane as world unit vectors ``(x, y, z)``, right-handed, with the first hinge turning about ``-y``
     (so that ``q = qpos``; a hinge about ``+y`` is a joint of ``sense=-1``) and gravity's in-plane part along ``-z``;
     and that part's magnitude."""
-    nm = lambda kind, i: _name(mujoco, model, kind, i)  # noqa: E731
+    nm = lambda kind, i: element_name(mujoco, model, kind, i)  # noqa: E731
     hinges = [j for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
     slides = [j for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE]
     g = np.zeros(3) if model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY else np.array(model.opt.gravity)
@@ -225,6 +74,17 @@ def _plane(mujoco, model, data):
     return (x, y, z), G
 
 
+def _planar(mujoco, model, data):
+    """:func:`_plane`'s ``((x, y, z), g)`` when every joint is a hinge or a slide in one plane, else ``None``."""
+    kinds = (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)
+    if any(mujoco.mjtJoint(t) not in kinds for t in model.jnt_type):
+        return None
+    try:
+        return _plane(mujoco, model, data)
+    except NotImplementedError:
+        return None
+
+
 def _d(theta):
     return np.array([math.sin(theta), -math.cos(theta)])
 
@@ -239,8 +99,9 @@ def _wrap(a: float) -> float:
     return math.pi if a == -math.pi else a
 
 
-def from_mjcf(source, *, limits: str | PenaltyLimits = "raise", contact: str | PenaltyContact = "raise") -> Chain:
-    """A planar kinematic tree read from MJCF, with ``q`` equal to MuJoCo's ``qpos``.
+def from_mjcf(source, *, limits: str | PenaltyLimits = "raise", contact: str | PenaltyContact = "raise",
+              tree: bool | None = None) -> Chain | Tree:
+    """A chain (a planar model) or a spatial tree (any other) read from MJCF or URDF, with ``q`` equal to ``qpos``.
 
     The model is compiled by MuJoCo itself (inertias from geoms, defaults classes, ``fromto``, degrees,
     includes), so this reads the compiled ``mujoco.MjModel`` at ``qpos = 0``. The contract: ``q`` is ``qpos``
@@ -248,6 +109,12 @@ def from_mjcf(source, *, limits: str | PenaltyLimits = "raise", contact: str | P
     ``ctrlrange`` where the actuator is ``ctrllimited``); ``mass_matrix``, ``bias_forces`` and
     ``forward_dynamics`` then equal ``mj_fullM``, ``qfrc_bias - qfrc_passive`` and ``qacc``, and
     :func:`~lagrange.interop.mjcf.solver_of` names the integrator that reproduces ``mj_step``.
+
+    A model whose joints are all hinges and slides moving in one plane is read as a planar
+    :class:`~lagrange.chain.Chain` (below); any other (ball or free joints, hinges about several axes, a URDF arm)
+    as a :class:`~lagrange.tree.Tree` (:func:`~lagrange.interop.mjcf.tree_reader.tree_from_model`: body for body,
+    joint for joint); ``tree=True`` reads a planar model as a tree too. A URDF file is compiled by MuJoCo as it
+    compiles any ``<robot>``: its root welded to the world.
 
     How a model maps onto a chain:
 
@@ -270,7 +137,7 @@ def from_mjcf(source, *, limits: str | PenaltyLimits = "raise", contact: str | P
       ``gear * gain`` is the link's gear.
 
     Args:
-        source: a path to an MJCF file, an MJCF string, or a compiled ``mujoco.MjModel``.
+        source: a path to an MJCF or URDF file, an MJCF string, or a compiled ``mujoco.MjModel``.
         limits: ``"raise"`` (refuse a model with a limited joint), ``"ignore"`` (load it without the
             limits: exact while every joint stays inside its range), or a :class:`lagrange.PenaltyLimits`: each
             limited joint gets its ``range`` and the chain this penalty law (not MuJoCo's constraint solver).
@@ -282,31 +149,47 @@ def from_mjcf(source, *, limits: str | PenaltyLimits = "raise", contact: str | P
             ``contype``/``conaffinity`` rule lets touch that plane; any other geom type that can touch it is
             refused by name. Contacts between the model's own geoms are left out (DFlex has none).
 
+        tree: ``None`` (a chain when the model is planar, else a tree), ``True`` (a tree) or ``False`` (a chain, or
+            refuse).
+
     Returns:
-        The :class:`~lagrange.chain.Chain` (float64 where JAX's x64 is enabled).
+        The :class:`~lagrange.chain.Chain` or :class:`~lagrange.tree.Tree` (float64 where JAX's x64 is enabled).
 
     Raises:
         ImportError: without MuJoCo (``pip install -e ".[mjcf]"``).
         ValueError: for a limited joint with ``limits="raise"``, a bad ``limits`` or ``contact``, a model
             without joints.
-        NotImplementedError: naming the element, for what a planar tree cannot reproduce: ball or free
-            joints, hinges that are not parallel, slides out of the plane,
-            contacts that can occur (with ``contact="raise"``), friction loss, tendons, equality constraints,
-            gravity compensation, fluid forces, actuators other than motors with a positive gear, force limits,
-            two motors on one joint.
+        NotImplementedError: naming the element, for what neither can reproduce (:func:`.refusals.refuse`):
+            contacts that can occur (with ``contact="raise"``), friction loss, tendons that carry force, equality
+            constraints, gravity compensation, fluid forces, actuators other than motors with a positive gear on a
+            hinge or slide, force limits, two motors on one joint; for a tree, penalty limits and contact (3-D
+            contact is not implemented yet: ``limits="ignore"``, ``contact="ignore"``); with ``tree=False``, what
+            only a tree can hold (ball or free joints, hinges not parallel, slides out of the plane).
     """
     if not isinstance(limits, PenaltyLimits) and limits not in LIMITS:
         raise ValueError(f"from_mjcf: limits must be one of {LIMITS} or a lagrange.PenaltyLimits, got {limits!r}")
     if not isinstance(contact, PenaltyContact) and contact not in CONTACTS:
         raise ValueError(f"from_mjcf: contact must be one of {CONTACTS} or a lagrange.PenaltyContact, got {contact!r}")
+    if tree not in (None, True, False):
+        raise ValueError(f"from_mjcf: tree must be None (a chain when the model is planar), True or False, got "
+                         f"{tree!r}")
     mujoco = import_mujoco()
     model = compile_model(source)
-    _refuse(mujoco, model, limits, contact)
-
+    if model.nq == 0:
+        raise ValueError("from_mjcf: the model has no joint; a chain or tree needs at least one")
     data = mujoco.MjData(model)
     data.qpos[:] = 0.0
     mujoco.mj_kinematics(model, data)
-    (X, Y, Z), G = _plane(mujoco, model, data)
+    plane = None if tree else _planar(mujoco, model, data)
+    if plane is None and tree is not False:
+        refuse(mujoco, model, limits, contact, planar=False)
+        for law, name in ((limits, "limits"), (contact, "contact")):
+            if not isinstance(law, str):
+                raise NotImplementedError(f"from_mjcf: {name}={type(law).__name__}(...) on a 3-D tree is not supported "
+                                          f"yet; {name}=\"ignore\" loads the model without it")
+        return tree_from_model(mujoco, model)
+    refuse(mujoco, model, limits, contact, planar=True)
+    (X, Y, Z), G = _plane(mujoco, model, data) if plane is None else plane
     origin = np.array(data.xanchor[0])
     to2 = lambda v: np.array([v @ X, v @ Z])  # noqa: E731  world vector -> plane (x, z)
 
@@ -386,7 +269,7 @@ def from_mjcf(source, *, limits: str | PenaltyLimits = "raise", contact: str | P
             kw["attach"] = (float(at @ _e(theta_parent)), float(-(at @ _d(theta_parent))))
         if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE and np.array(data.xaxis[j]) @ Y > 0:
             kw["sense"] = -1  # turns about +y where the first hinge turns about -y
-        if isinstance(limits, PenaltyLimits) and _limited(mujoco, model, j):
+        if isinstance(limits, PenaltyLimits) and is_limited(mujoco, model, j):
             kw["range"] = tuple(float(x) for x in model.jnt_range[j])
         if j in touching:
             kw["contacts"] = [_in_frame(point - anchor[j], t) + (r,) for point, r in touching[j]]
@@ -417,7 +300,7 @@ def _in_frame(r, theta: float) -> tuple[float, float]:
 def _ground_contacts(mujoco, model, data, last_joint, origin, Z, to2):
     """The contact points of the geoms that can touch the ground plane, per link (the last joint of each geom's
     rigid group): ``{link: [(point in the plane at qpos = 0, radius), ...]}``; and the plane's height."""
-    nm = lambda kind, i: _name(mujoco, model, kind, i)  # noqa: E731
+    nm = lambda kind, i: element_name(mujoco, model, kind, i)  # noqa: E731
     kinds = mujoco.mjtGeom
     planes = [g for g in range(model.ngeom) if model.geom_type[g] == kinds.mjGEOM_PLANE and model.geom_bodyid[g] == 0]
     if len(planes) != 1:

@@ -21,6 +21,7 @@ import pytest
 
 import lagrange as lg
 from lagrange.interop.mjcf import from_mjcf, mujoco_rollout, solver_of, to_mjcf
+from lagrange.tree import Tree
 from tests.helpers import rel
 
 EXACT = 1e-10
@@ -303,13 +304,23 @@ HINGE = '<joint name="j1" type="hinge" axis="0 1 0"/>'
 GC = '<geom name="gc" type="sphere" size="0.1" pos="0 0 -1"/>'  # on the tip of link b, colliding by default
 GW = '<geom name="gw" type="plane" size="5 5 1" pos="0 0 -3"/>'  # a floor
 
-REFUSALS = [
-    ("ball joint", _chain_xml('<joint name="j1" type="ball"/>'), NotImplementedError, "joint 'j1' is a ball joint"),
-    ("free joint", _chain_xml('<freejoint name="j1"/>'), NotImplementedError, "joint 'j1' is a free joint"),
-    ("tilted hinge", _chain_xml('<joint name="j1" type="hinge" axis="1 1 0"/>'), NotImplementedError,
-     "not parallel.*leaves the plane"),
-    ("slide out of plane", _chain_xml('<joint name="j1" type="slide" axis="0 1 0"/>'), NotImplementedError,
+SPATIAL = [  # what only a spatial tree holds: a Tree by default, refused when a chain is asked for (tree=False)
+    ("ball joint", _chain_xml('<joint name="j1" type="ball"/>'), "joint 'j1' is a ball joint"),
+    ("free joint", _chain_xml('<freejoint name="j1"/>'), "joint 'j1' is a free joint"),
+    ("tilted hinge", _chain_xml('<joint name="j1" type="hinge" axis="1 1 0"/>'), "not parallel.*leaves the plane"),
+    ("slide out of plane", _chain_xml('<joint name="j1" type="slide" axis="0 1 0"/>'),
      "joint 'j1' slides along .* out of the plane"),
+]
+
+
+@pytest.mark.parametrize("what, xml, match", SPATIAL, ids=[r[0] for r in SPATIAL])
+def test_what_only_a_tree_holds_loads_as_a_tree_and_a_chain_refuses_it(what, xml, match):
+    assert isinstance(from_mjcf(xml), Tree)
+    with pytest.raises(NotImplementedError, match=match):
+        from_mjcf(xml, tree=False)
+
+
+REFUSALS = [
     ("contact", _chain_xml(HINGE, body_extra=GC, world=GW), NotImplementedError,
      "geom 'gw' and geom 'gc'.*contact=\"ignore\".*contact=\"disable\""),
     ("contact pair", _chain_xml(HINGE, model_extra='<contact><pair geom1="ga" geom2="gb"/></contact>'),

@@ -1,0 +1,119 @@
+"""3-D trees beside MuJoCo C: semi-implicit Euler steps of dm_control's humanoid and Gymnasium's ant in free flight.
+
+    python -m benchmarks.trees3d              # B = 1024, 50 steps, float64
+    python -m benchmarks.trees3d --batch 64   # smaller
+
+For each model (constraints disabled, MuJoCo's Euler integrator, the tree read by ``from_mjcf(..., tree=True)``):
+microseconds per environment-step of lagrange's ``simulate`` (``jax.vmap`` over the batch, one jitted program)
+against MuJoCo C's ``mujoco.rollout`` with 2 threads on the same states and controls, the minimum of 3 repeats, both
+in one process; the gradient of a loss of the final state through lagrange's rollout (``jax.grad``); and the
+compile times of forward dynamics and of the rollout's gradient. Writes ``benchmarks/results/trees3d.{json,md}``
+(``--batch`` other than 1024: ``runs/benchmarks/``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+import jax.numpy as jnp  # noqa: E402
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+from mujoco import rollout  # noqa: E402
+
+import lagrange as lg  # noqa: E402
+from benchmarks._cli import asset, gymnasium_model, outputs  # noqa: E402
+from benchmarks._timing import median_time  # noqa: E402
+from lagrange.interop.mjcf import from_mjcf  # noqa: E402
+from optim.checkpoint import write_json, write_text  # noqa: E402
+
+MODELS = {"dm_control humanoid": lambda: asset("dm_control", "suite", "humanoid.xml"),
+          "Gymnasium ant": lambda: gymnasium_model("ant")}
+
+
+def free_flight(path):
+    """MuJoCo's model with every constraint disabled and Euler, and the tree read from it."""
+    model = mujoco.MjModel.from_xml_path(str(path))
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    return model, from_mjcf(model, limits="ignore", contact="ignore", tree=True)
+
+
+def states(model, rng, B):
+    """``B`` states near ``qpos0``: hinges moved by up to 0.5 rad, the free joint turned at random, speeds up to 1."""
+    q = np.repeat(np.asarray(model.qpos0, float)[None], B, axis=0)
+    for j in range(model.njnt):
+        a = model.jnt_qposadr[j]
+        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+            quat = rng.normal(size=(B, 4))
+            q[:, a + 3: a + 7] = quat / np.linalg.norm(quat, axis=1, keepdims=True)
+        elif model.jnt_type[j] in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
+            q[:, a] += rng.uniform(-0.5, 0.5, B)
+    return q, rng.uniform(-1, 1, (B, model.nv))
+
+
+def measure(name, B, T):
+    model, tree = free_flight(MODELS[name]())
+    rng = np.random.default_rng(0)
+    q0, qd0 = states(model, rng, B)
+    us = rng.uniform(-1, 1, (B, T, model.nu))
+    dt = float(model.opt.timestep)
+
+    def final(q, qd, u):
+        tr = lg.simulate(tree, q, qd, u, dt, lg.SemiImplicitEuler(), check=False)
+        return tr.q[-1], tr.qd[-1]
+
+    forward = jax.jit(jax.vmap(final))
+    loss = lambda q, qd, u: jnp.sum(jnp.concatenate(final(q, qd, u)) ** 2)  # noqa: E731
+    gradient = jax.jit(jax.vmap(jax.grad(loss, argnums=(0, 1, 2))))
+    args = tuple(jnp.asarray(x) for x in (q0, qd0, us))
+    t = time.perf_counter()
+    jax.jit(lambda q, qd, u: lg.forward_dynamics(tree, q, qd, u, check=False)).lower(
+        args[0][0], args[1][0], args[2][0, 0]).compile()
+    compile_fd = time.perf_counter() - t
+    t = time.perf_counter()
+    gradient.lower(*args).compile()
+    compile_grad = time.perf_counter() - t
+    ours = median_time(forward, *args, repeats=3, best=True) / (B * T)
+    ours_grad = median_time(gradient, *args, repeats=3, best=True) / (B * T)
+    datas = [mujoco.MjData(model) for _ in range(2)]
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    x0 = np.zeros((B, mujoco.mj_stateSize(model, spec)))
+    x0[:, 1: 1 + model.nq], x0[:, 1 + model.nq: 1 + model.nq + model.nv] = q0, qd0
+    state = np.empty((B, T, x0.shape[1]))
+    mj = median_time(lambda: rollout.rollout(model, datas, x0, us, nstep=T, state=state, persistent_pool=True),
+                     repeats=3, best=True) / (B * T)
+    err = float(np.max(np.abs(np.asarray(forward(*args)[0]) - state[:, -1, 1: 1 + model.nq])))
+    return dict(nq=model.nq, nv=model.nv, batch=B, steps=T, lagrange_us=ours * 1e6, lagrange_grad_us=ours_grad * 1e6,
+                mujoco_c_us=mj * 1e6, speedup=mj / ours, compile_forward_dynamics_s=compile_fd,
+                compile_rollout_gradient_s=compile_grad, final_qpos_max_abs_diff=err)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--batch", type=int, default=1024)
+    ap.add_argument("--steps", type=int, default=50)
+    args = ap.parse_args()
+    rows = {name: measure(name, args.batch, args.steps) for name in MODELS}
+    folder = outputs(args.batch != 1024)[0]
+    folder.mkdir(parents=True, exist_ok=True)
+    write_json(folder / "trees3d.json", rows, indent=2)
+    lines = ["| model | nv | lagrange µs/env-step | MuJoCo C (2 threads) µs | lagrange / MuJoCo C speed | "
+             "lagrange gradient µs | compile: forward dynamics, rollout gradient |",
+             "|---|---:|---:|---:|---:|---:|---|"]
+    for name, r in rows.items():
+        lines.append(f"| {name} | {r['nv']} | {r['lagrange_us']:.1f} | {r['mujoco_c_us']:.1f} | {r['speedup']:.2f}x | "
+                     f"{r['lagrange_grad_us']:.1f} | {r['compile_forward_dynamics_s']:.1f} s, "
+                     f"{r['compile_rollout_gradient_s']:.1f} s |")
+    write_text(folder / "trees3d.md", "\n".join(lines) + "\n")
+    print("\n".join(lines))
+    for name, r in rows.items():
+        print(f"{name}: final qpos within {r['final_qpos_max_abs_diff']:.1e} of MuJoCo C's")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,72 @@
+"""The generalized forces beside the rigid-body dynamics of a spatial tree: the joints' dampers and springs (MuJoCo's
+``qfrc_passive``) and the motors (``qfrc_actuator``), as arrays ``(..., nv)``."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from lagrange.actuation import actuation_matrix, clamp_controls
+from lagrange.joints import Free
+from lagrange.tree import Tree
+
+__all__ = ["actuation", "passive", "per_dof", "spring_potential"]
+
+
+def _zero(x) -> bool:
+    return not isinstance(x, jax.core.Tracer) and float(np.asarray(x)) == 0.0
+
+
+def per_dof(tree: Tree, field: str):
+    """A joint parameter (``"damping"``, ``"armature"``) repeated over each joint's velocities: ``(nv,)``, in NumPy
+    when concrete; ``None`` when it is exactly zero on every joint."""
+    values = [getattr(j, field) for j in tree.joints]
+    if all(_zero(v) for v in values):
+        return None
+    reps = [j.nv for j in tree.joints]
+    if any(isinstance(v, jax.core.Tracer) for v in values):
+        return jnp.concatenate([jnp.full((r,), v) for v, r in zip(values, reps)])
+    return np.repeat(np.array([float(np.asarray(v)) for v in values]), reps)
+
+
+def passive(tree: Tree, q, qd):
+    """``-damping qd - stiffness (q - springref)`` per dof (a ball's and a free joint's rotation: the rotation vector
+    from the rest quaternion), ``(..., nv)``, the springs only where ``q`` is given, the dampers where ``qd`` is;
+    ``None`` when the tree has neither."""
+    out = None
+    damping = per_dof(tree, "damping")
+    if qd is not None and damping is not None:
+        out = -damping * qd
+    if q is not None:
+        for link, j, d in _springs(tree, q):
+            force = jnp.zeros(q.shape[:-1] + (tree.nv,), q.dtype)
+            force = force.at[..., tree.vadr[link]: tree.vadr[link] + j.nv].set(-j.stiffness * d)
+            out = force if out is None else out + force
+    return out
+
+
+def _springs(tree: Tree, q):
+    """``(link, joint, displacement (..., nv_j))`` of every joint with a spring (not exactly zero stiffness)."""
+    for link, j in enumerate(tree.joints):
+        if _zero(j.stiffness):
+            continue
+        ref = j.springref
+        if isinstance(j, Free) and ref is None:
+            b = tree.bodies[tree.joint_body[link]]
+            ref = jnp.concatenate([jnp.asarray(b.pos), jnp.asarray(b.quat)])
+        yield link, j, j.spring(q[..., tree.qadr[link]: tree.qadr[link] + j.nq], ref)
+
+
+def spring_potential(tree: Tree, q):
+    """The springs' ``1/2 stiffness |displacement|^2``, ``(...)``; ``None`` without springs."""
+    terms = [0.5 * j.stiffness * jnp.sum(d * d, axis=-1) for _, j, d in _springs(tree, q)]
+    return sum(terms[1:], terms[0]) if terms else None
+
+
+def actuation(tree: Tree, u):
+    """``B u``, ``u`` clamped into the motors' ranges first, ``(..., nv)``; ``None`` without control."""
+    if u is None or tree.m == 0:
+        return None
+    u = clamp_controls(tree, u)
+    return jnp.einsum("ij,...j->...i", actuation_matrix(tree).astype(u.dtype), u)
