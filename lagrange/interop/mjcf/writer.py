@@ -1,4 +1,5 @@
-"""Writing MJCF: a chain as a model string that MuJoCo, MJX and Brax simulate exactly.
+"""Writing MJCF: a chain (or a spatial tree, :mod:`~lagrange.interop.mjcf.tree_writer`) as a model string that
+MuJoCo, MJX and Brax simulate exactly.
 
 :func:`to_mjcf` returns the model as an XML string; MuJoCo, MJX and Brax load it with their own
 readers::
@@ -49,6 +50,8 @@ import jax
 import numpy as np
 
 from lagrange.chain import Chain
+from lagrange.interop.mjcf.tree_writer import tree_mjcf
+from lagrange.tree import Tree
 
 INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
 """The MuJoCo integrators :func:`to_mjcf` accepts (Brax loads only ``"Euler"``)."""
@@ -74,7 +77,7 @@ def _values(chain: Chain, name: str):
 
 
 def to_mjcf(
-    chain: Chain,
+    chain: Chain | Tree,
     timestep: float = 0.01,
     integrator: str = "Euler",
     name: str = "chain",
@@ -82,10 +85,14 @@ def to_mjcf(
     radius: float = 0.02,
     tiny: float = 1e-12,
 ) -> str:
-    """The chain as an MJCF model string, for ``mujoco.MjModel.from_xml_string`` or ``brax.io.mjcf.loads``.
+    """The chain or tree as an MJCF model string, for ``mujoco.MjModel.from_xml_string`` or ``brax.io.mjcf.loads``.
+
+    A :class:`~lagrange.tree.Tree` is written body for body (:mod:`~lagrange.interop.mjcf.tree_writer`), so that
+    :func:`~lagrange.interop.mjcf.from_mjcf` reads it back (``tree=True`` for a planar one); ``radius`` then has no
+    use (no geoms are written).
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain` (concrete parameters, not traced).
+        chain: the :class:`~lagrange.chain.Chain` or :class:`~lagrange.tree.Tree` (concrete parameters, not traced).
         timestep: MuJoCo's ``option/timestep`` [s], finite and > 0.
         integrator: one of ``"Euler"`` (MuJoCo's semi-implicit Euler, the one Brax loads and
             :class:`lagrange.SemiImplicitEuler` reproduces), ``"RK4"``, ``"implicit"``,
@@ -100,8 +107,8 @@ def to_mjcf(
         actuator ``k`` ``u{k}`` (in the order of ``chain.actuated``), so MuJoCo's ``qpos``,
         ``qvel`` and ``ctrl`` line up with ``q``, ``qd`` and ``u``.
     """
-    if not isinstance(chain, Chain):
-        raise TypeError(f"chain must be a lagrange.chain.Chain, got {type(chain).__name__}")
+    if not isinstance(chain, (Chain, Tree)):
+        raise TypeError(f"chain must be a lagrange.chain.Chain or a lagrange.tree.Tree, got {type(chain).__name__}")
     if isinstance(timestep, bool) or not isinstance(timestep, (int, float, np.floating, np.integer)):
         raise TypeError(f"timestep must be a positive real number of seconds, got {timestep!r}")
     if not (math.isfinite(float(timestep)) and float(timestep) > 0):
@@ -114,6 +121,8 @@ def to_mjcf(
         raise ValueError(f"radius must be a finite number > 0 metres, got {radius!r}")
     if isinstance(tiny, bool) or not (isinstance(tiny, (int, float)) and 1e-15 < tiny <= 1e-6):
         raise ValueError(f"tiny must be a number in (1e-15, 1e-6], got {tiny!r}")
+    if isinstance(chain, Tree):
+        return tree_mjcf(chain, float(timestep), integrator, name, tiny)
 
     mass = _values(chain, "mass")
     length = _values(chain, "length")
