@@ -145,10 +145,7 @@ class Kinematics:
         root = np.array([parent == WORLD for parent in st.link_parent])
         R0 = jnp.where(places[:, None, None], R0, al.eye3(dtype))
         R, p = al.matmul(R0, RJ), jnp.where((places & ~root)[:, None], p0, 0.0) + al.matvec(R0, pJ)
-        eye, zero = jnp.broadcast_to(al.eye3(dtype), batch + (1, 3, 3)), jnp.zeros(batch + (1, 3), dtype)
-        for anc in st.jumps:  # compose with the current ancestors' frames (index n: the world, the identity)
-            Ra, pa = al.take(jnp.concatenate([R, eye], -3), anc, -3), al.take(jnp.concatenate([p, zero], -2), anc, -2)
-            R, p = al.matmul(Ra, R), pa + al.matvec(Ra, p)
+        R, p = _compose(st, R, p)
         roots = sorted(set(st.tree_of))
         origins = [al.take(q, np.arange(tree.qadr[i], tree.qadr[i] + 3), -1) if type(st.joints[i]).places_body
                    else jnp.broadcast_to(p0[i], batch + (3,)) for i in roots]
@@ -192,6 +189,24 @@ class Kinematics:
         """``S_a . f_{link of a}`` for every velocity ``a`` from forces on the links ``f`` (``(..., n, 6)``):
         ``(..., nv)``."""
         return jnp.sum(self.S * al.take(f, self.structure.dof_link, -2), axis=-1)
+
+
+def _compose(st: Structure, R, p):
+    """Every link's frame in the world (relative to its tree's reference point) from its frame in its parent link's
+    (``R (..., n, 3, 3)``, ``p (..., n, 3)``), by the pointer-jumping rounds of ``st.jumps``. The rounds run with the
+    batch as the last axis, where each 3x3 product vectorises over the environments: 4x faster on a CPU than with the
+    batch first (dm_control's humanoid at B = 1024)."""
+    batch = R.shape[:-3]
+    size = int(np.prod(batch, dtype=int))
+    R = jnp.moveaxis(R.reshape((size,) + R.shape[-3:]), 0, -1)  # (n, 3, 3, B)
+    p = jnp.moveaxis(p.reshape((size,) + p.shape[-2:]), 0, -1)  # (n, 3, B)
+    eye = jnp.broadcast_to(al.eye3(R.dtype)[None, :, :, None], (1, 3, 3, size))
+    zero = jnp.zeros((1, 3, size), R.dtype)
+    for anc in st.jumps:  # compose with the current ancestors' frames (index n: the world, the identity)
+        Ra, pa = al.take(jnp.concatenate([R, eye], 0), anc, 0), al.take(jnp.concatenate([p, zero], 0), anc, 0)
+        R, p = jnp.sum(Ra[:, :, :, None] * R[:, None], axis=2), pa + jnp.sum(Ra * p[:, None], axis=2)
+    R, p = jnp.moveaxis(R, -1, 0), jnp.moveaxis(p, -1, 0)
+    return R.reshape(batch + R.shape[1:]), p.reshape(batch + p.shape[1:])
 
 
 def _links_product(A, x, axis=-2):
