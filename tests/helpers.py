@@ -187,6 +187,26 @@ def mujoco_batch_rollout(model, data, q0, qd0, controls):
     return state[:, :, 1 : 1 + n], state[:, :, 1 + n :]
 
 
+def mujoco_forward(model, q, qd, u):
+    """MuJoCo's ``MjData`` after ``mj_forward`` at ``(qpos, qvel, ctrl) = (q, qd, u)``, and its dense mass matrix
+    (``mj_fullM``)."""
+    import mujoco
+
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:], data.ctrl[:] = q, qd, u
+    mujoco.mj_forward(model, data)
+    M = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, M)
+    return data, M
+
+
+def mujoco_terms(model, q, qd, u):
+    """MuJoCo's ``(M, qfrc_bias - qfrc_passive, qacc)`` at a state: what ``mass_matrix``, ``bias_forces`` and
+    ``forward_dynamics`` of the model read by ``from_mjcf`` equal."""
+    data, M = mujoco_forward(model, q, qd, u)
+    return M, data.qfrc_bias - data.qfrc_passive, np.array(data.qacc)
+
+
 def random_problem(chain: Chain, seed: int, steps: int = 500, *, scale=0.3, control_scale=1.0):
     rng = np.random.default_rng(seed)
     q0 = scale * rng.standard_normal(chain.n)

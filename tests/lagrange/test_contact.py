@@ -33,7 +33,7 @@ from lagrange.contact import PenaltyContact
 from lagrange.dynamics import _folded
 from lagrange.interop.mjcf import from_mjcf
 from lagrange.limits import PenaltyLimits
-from tests.helpers import rel
+from tests.helpers import mujoco_forward, rel
 
 GYM = pathlib.Path(importlib.util.find_spec("gymnasium").submodule_search_locations[0]) / "envs/mujoco/assets"
 KE, KD, KF, MU = 2e4, 1e3, 1e3, 0.9
@@ -46,11 +46,7 @@ def _law():
 
 def _independent(model, q, qd, u):
     """qdd from MuJoCo's M, bias, kinematics and Jacobians, with the penalty forces computed here."""
-    data = mujoco.MjData(model)
-    data.qpos[:], data.qvel[:], data.ctrl[:] = q, qd, u
-    mujoco.mj_forward(model, data)
-    M = np.zeros((model.nv, model.nv))
-    mujoco.mj_fullM(model, data, M)
+    data, M = mujoco_forward(model, q, qd, u)
     tau = data.qfrc_actuator - (data.qfrc_bias - data.qfrc_passive)
     out_of_range = 0
     for j in np.flatnonzero(model.jnt_limited):

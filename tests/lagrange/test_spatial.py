@@ -31,7 +31,7 @@ import lagrange as lg
 from lagrange.interop.mjcf import from_mjcf, to_mjcf
 from lagrange.joints import Ball, Free, Hinge, Slide
 from lagrange.tree import Body, Motor, Tree
-from tests.helpers import ROOT, rel
+from tests.helpers import ROOT, mujoco_terms, rel
 
 EXACT = 1e-10
 TRAJECTORY = 1e-9
@@ -83,15 +83,6 @@ def random_state(model, rng, speed=3.0):
         else:
             q[a] += rng.uniform(-1, 1) * (0.3 if kind == mujoco.mjtJoint.mjJNT_SLIDE else 1.0)
     return q, rng.uniform(-speed, speed, model.nv), rng.uniform(-1, 1, model.nu)
-
-
-def mujoco_terms(model, q, qd, u):
-    data = mujoco.MjData(model)
-    data.qpos[:], data.qvel[:], data.ctrl[:] = q, qd, u
-    mujoco.mj_forward(model, data)
-    M = np.zeros((model.nv, model.nv))
-    mujoco.mj_fullM(model, data, M)
-    return M, data.qfrc_bias - data.qfrc_passive, np.array(data.qacc)
 
 
 SAME_AS = {"brax/ant": "gymnasium/ant", "brax/humanoid": "gymnasium/humanoid"}  # the same model, see below

@@ -22,7 +22,7 @@ import pytest
 import lagrange as lg
 from lagrange.interop.mjcf import from_mjcf, mujoco_rollout, solver_of, to_mjcf
 from lagrange.tree import Tree
-from tests.helpers import rel
+from tests.helpers import mujoco_terms, rel
 
 EXACT = 1e-10
 ROLLOUT = 1e-9
@@ -121,15 +121,6 @@ def _random_states(model, rng, k=6, scale=1.0):
     return q, qd, u
 
 
-def _mujoco_terms(model, q, qd, u):
-    data = mujoco.MjData(model)
-    data.qpos[:], data.qvel[:], data.ctrl[:] = q, qd, u
-    mujoco.mj_forward(model, data)
-    M = np.zeros((model.nv, model.nv))
-    mujoco.mj_fullM(model, data, M)
-    return M, data.qfrc_bias - data.qfrc_passive, np.array(data.qacc)
-
-
 def _ours(chain, q, qd, u):
     u = jnp.asarray(u) if chain.m else None
     q, qd = jnp.asarray(q), jnp.asarray(qd)
@@ -143,7 +134,7 @@ def _check_terms(model, chain, seed=0, scales=(1.0,)):
     ours = eqx.filter_jit(jax.vmap(_ours, in_axes=(None, 0, 0, 0)))(chain, jnp.asarray(q), jnp.asarray(qd),
                                                                       jnp.asarray(u))
     for k in range(len(q)):
-        for name, a, b in zip(("M", "bias", "qacc"), (o[k] for o in ours), _mujoco_terms(model, q[k], qd[k], u[k])):
+        for name, a, b in zip(("M", "bias", "qacc"), (o[k] for o in ours), mujoco_terms(model, q[k], qd[k], u[k])):
             assert rel(a, b) <= EXACT, f"{name} at state {k}: {rel(a, b):.1e}"
 
 
@@ -226,7 +217,7 @@ def test_trees_round_trip_through_to_mjcf(name):
     again = mujoco.MjModel.from_xml_string(to_mjcf(chain, timestep=float(model.opt.timestep)))
     q, qd, u = _random_states(model, np.random.default_rng(3))
     for k in range(len(q)):
-        for a, b in zip(_mujoco_terms(again, q[k], qd[k], u[k]), _mujoco_terms(model, q[k], qd[k], u[k])):
+        for a, b in zip(mujoco_terms(again, q[k], qd[k], u[k]), mujoco_terms(model, q[k], qd[k], u[k])):
             assert rel(a, b) <= EXACT
     same = from_mjcf(to_mjcf(chain))
     assert same.parents == chain.parents and same.senses == chain.senses and same.sprung == chain.sprung
@@ -273,7 +264,7 @@ def test_round_trip_through_to_mjcf(name):
     again = mujoco.MjModel.from_xml_string(to_mjcf(chain, timestep=float(model.opt.timestep)))
     q, qd, u = _random_states(model, np.random.default_rng(3))
     for k in range(len(q)):
-        for a, b in zip(_mujoco_terms(again, q[k], qd[k], u[k]), _mujoco_terms(model, q[k], qd[k], u[k])):
+        for a, b in zip(mujoco_terms(again, q[k], qd[k], u[k]), mujoco_terms(model, q[k], qd[k], u[k])):
             assert rel(a, b) <= EXACT
     assert jax.tree_util.tree_all(jax.tree_util.tree_map(
         lambda a, b: np.allclose(a, b, rtol=1e-12, atol=1e-15), chain, from_mjcf(to_mjcf(chain))))
