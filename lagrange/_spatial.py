@@ -70,14 +70,15 @@ def axis_rotation(axis, c, s):
     return aa + c[..., None, None] * (eye3(aa.dtype) - aa) + s[..., None, None] * skew(axis)
 
 
-def quat_to_matrix(q):
-    """The rotation of a unit quaternion ``(w, x, y, z)`` (MuJoCo's ``mju_quat2Mat``)."""
+def quat_to_matrix(q, xp=jnp):
+    """The rotation of a unit quaternion ``(w, x, y, z)`` (MuJoCo's ``mju_quat2Mat``); ``xp=numpy`` computes it in NumPy
+    (a concrete placement, while tracing or reading a model)."""
     w, x, y, z = (q[..., i] for i in range(4))
     ww, xx, yy, zz = w * w, x * x, y * y, z * z
     wx, wy, wz, xy, xz, yz = w * x, w * y, w * z, x * y, x * z, y * z
-    return jnp.stack([jnp.stack([ww + xx - yy - zz, 2 * (xy - wz), 2 * (xz + wy)], -1),
-                      jnp.stack([2 * (xy + wz), ww - xx + yy - zz, 2 * (yz - wx)], -1),
-                      jnp.stack([2 * (xz - wy), 2 * (yz + wx), ww - xx - yy + zz], -1)], axis=-2)
+    return xp.stack([xp.stack([ww + xx - yy - zz, 2 * (xy - wz), 2 * (xz + wy)], -1),
+                     xp.stack([2 * (xy + wz), ww - xx + yy - zz, 2 * (yz - wx)], -1),
+                     xp.stack([2 * (xz - wy), 2 * (yz + wx), ww - xx - yy + zz], -1)], axis=-2)
 
 
 def quat_multiply(a, b):

@@ -26,13 +26,6 @@ def _xp(*xs):
     return jnp if any(isinstance(x, jax.core.Tracer) for x in xs) else np
 
 
-def _quat_to_matrix(q, xp):
-    w, x, y, z = q
-    return xp.stack([xp.stack([w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)]),
-                     xp.stack([2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)]),
-                     xp.stack([2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z])])
-
-
 def _value(x):
     """A concrete parameter as a NumPy array (its arithmetic then runs while tracing, in NumPy); a traced one as is."""
     return x if isinstance(x, jax.core.Tracer) else np.asarray(x)
@@ -41,7 +34,7 @@ def _value(x):
 def _pose(body):
     """A body's placement in its parent's frame: ``(R, p)``."""
     quat, pos = _value(body.quat), _value(body.pos)
-    return _quat_to_matrix(quat, _xp(quat, pos)), pos
+    return al.quat_to_matrix(quat, _xp(quat, pos)), pos
 
 
 def placements(structure: Structure):

@@ -10,17 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from lagrange._spatial import quat_to_matrix
 from lagrange.joints import Ball, Free, Hinge, Slide
 from lagrange.tree import Body, Motor, Tree
 
 __all__ = ["tree_from_model"]
-
-
-def _quat_to_matrix(q):
-    w, x, y, z = q
-    return np.array([[w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z]])
 
 
 def _clean(x):
@@ -52,7 +46,7 @@ def tree_from_model(mujoco, model) -> Tree:
     caller: :func:`lagrange.interop.mjcf.from_mjcf`)."""
     bodies = []
     for b in range(1, model.nbody):
-        R = _quat_to_matrix(np.asarray(model.body_iquat[b], float))
+        R = quat_to_matrix(np.asarray(model.body_iquat[b], float), np)
         inertia = _clean(R @ np.diag(model.body_inertia[b]) @ R.T)
         joints = [_joint(mujoco, model, j) for j in range(model.njnt) if model.jnt_bodyid[j] == b]
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or None
