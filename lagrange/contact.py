@@ -119,6 +119,32 @@ class PenaltyContact(eqx.Module):
         ft = -jnp.clip(self.kf * vt, -bound, bound)
         return fn, ft
 
+    def forces_3d(self, depth, vn, vt):
+        """The contact forces on a level ground in 3-D: the normal force as :meth:`forces`, the friction
+        ``-(vt / |vt|) min(kf |vt|, mu ke d)`` against the tangential velocity ``vt`` (in the plane ``-clip(kf vt,
+        -mu ke d, mu ke d)`` of :meth:`forces`).
+
+        Written as ``-vt min(kf, mu ke d / |vt|)`` with the viscous branch taken wherever ``kf |vt| <= mu ke d``
+        (``vt = 0`` included) and ``|vt|`` replaced by 1 where it is 0 (a branch ``where`` then discards), so that
+        the value and the gradient are finite and exact at ``vt = 0`` and at ``d = 0``.
+
+        Args:
+            depth: the spots' depth below the ground [m], positive below it; shape ``(...)``.
+            vn: the spots' velocity along the ground's normal ``+z`` [m/s], ``(...)``.
+            vt: the spots' velocity along the ground ``(x, y)`` [m/s], ``(..., 2)``.
+
+        Returns:
+            ``(fn, ft)``: the normal force ``(...)`` and the friction ``(..., 2)`` [N]; zero where ``depth <= 0``.
+        """
+        d = jnp.where(depth > 0, depth, 0.0)
+        fn = self.ke * d + self.kd * d * jnp.where(vn < 0, -vn, 0.0)
+        bound = self.mu * self.ke * d
+        v2 = jnp.sum(vt * vt, axis=-1)
+        speed = jnp.sqrt(jnp.where(v2 > 0, v2, 1.0))
+        viscous = (v2 == 0) | (self.kf * speed <= bound)  # a comparison: no gradient flows through it
+        gain = jnp.where(viscous, self.kf, bound / speed)
+        return fn, -gain[..., None] * vt
+
     def energy(self, depth):
         """The penalty spring's potential energy.
 

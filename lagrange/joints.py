@@ -125,10 +125,20 @@ class _AxisJoint(AbstractJoint):
     armature: Float[ArrayLike, ""]
     stiffness: Float[ArrayLike, ""]
     springref: Float[ArrayLike, ""]
+    range: tuple[float, float] | None = eqx.field(static=True)
 
     def __init__(self, axis=(0.0, 0.0, 1.0), pos=(0.0, 0.0, 0.0), *, ref=0.0, damping=0.0, armature=0.0,
-                 stiffness=0.0, springref=None):
+                 stiffness=0.0, springref=None, range=None):
         name = type(self).__name__
+        if range is not None:
+            try:
+                lo, hi = (float(x) for x in range)
+            except (TypeError, ValueError) as err:
+                raise TypeError(f"{name}.range must be (lower, upper) or None, got {range!r}") from err
+            if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+                raise ValueError(f"{name}.range must be finite with lower < upper, got {range!r}")
+            range = (lo, hi)
+        self.range = range
         self.axis = _axis(name, axis)
         self.pos = check_array(f"{name}.pos", pos, (3,))
         self.ref = check_array(f"{name}.ref", ref)
@@ -157,6 +167,7 @@ class Hinge(_AxisJoint):
         ref: the angle at which the body sits as written [rad] (MuJoCo's ``ref``).
         damping, armature, stiffness: see :class:`AbstractJoint`.
         springref: the spring's rest angle [rad] (default ``ref``).
+        range: ``(lower, upper)`` [rad], pressed by the tree's ``limits`` law, or ``None``; static.
     """
 
     @classmethod
@@ -183,6 +194,7 @@ class Slide(_AxisJoint):
         ref: the displacement at which the body sits as written [m].
         damping, armature, stiffness: see :class:`AbstractJoint`.
         springref: the spring's rest displacement [m] (default ``ref``).
+        range: ``(lower, upper)`` [m], pressed by the tree's ``limits`` law, or ``None``; static.
     """
 
     @classmethod

@@ -24,7 +24,9 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from lagrange.checks import check_array
+from lagrange.contact import PenaltyContact
 from lagrange.joints import AbstractJoint, Free, Hinge, Slide
+from lagrange.limits import PenaltyLimits
 
 __all__ = ["Body", "Motor", "Tree", "WORLD"]
 
@@ -46,6 +48,8 @@ class Body(eqx.Module):
         pos: the body frame's origin in the parent's frame as written [m].
         quat: the body frame's orientation in the parent's frame as written, a quaternion ``(w, x, y, z)``
             (normalised here).
+        contacts: ground contact points ``(x, y, z, radius)`` in the body's frame [m] (a capsule's two end points,
+            a sphere's centre, a box's corners with radius 0); static. The tree's ``contact`` law presses them.
         name: a name for messages; static.
     """
 
@@ -56,12 +60,13 @@ class Body(eqx.Module):
     quat: Float[Array, "4"]
     joints: tuple[AbstractJoint, ...]
     parent: int | None = eqx.field(static=True)
+    contacts: tuple[tuple[float, float, float, float], ...] = eqx.field(static=True)
     name: str | None = eqx.field(static=True)
 
     def __init__(self, mass: Float[ArrayLike, ""], inertia: Float[ArrayLike, "3"] | Float[ArrayLike, "3 3"] = (0, 0, 0),
                  com: Float[ArrayLike, "3"] = (0.0, 0.0, 0.0), *, joints: Sequence[AbstractJoint] = (),
                  parent: int | None = None, pos: Float[ArrayLike, "3"] = (0.0, 0.0, 0.0),
-                 quat: Float[ArrayLike, "4"] = (1.0, 0.0, 0.0, 0.0), name: str | None = None):
+                 quat: Float[ArrayLike, "4"] = (1.0, 0.0, 0.0, 0.0), contacts=(), name: str | None = None):
         who = f"Body {name!r}" if name else "Body"
         self.mass = check_array(f"{who}.mass", mass, nonnegative=True)
         if np.shape(inertia) == (3,):  # principal moments along the body's axes
@@ -98,7 +103,21 @@ class Body(eqx.Module):
             raise ValueError(f"{who}.parent must be None, -1 (the world) or the index of a body listed before it, "
                              f"got {parent!r}")
         self.parent = None if parent is None else int(parent)
+        self.contacts = _contact_points(who, contacts)
         self.name = name
+
+
+def _contact_points(who: str, value) -> tuple[tuple[float, float, float, float], ...]:
+    """``(x, y, z, radius)`` points as floats, finite with radius >= 0, else an error naming the field."""
+    try:
+        points = tuple(tuple(float(c) for c in p) for p in value)
+    except (TypeError, ValueError) as err:
+        raise TypeError(f"{who}.contacts must be a sequence of points (x, y, z, radius), got {value!r}") from err
+    for k, p in enumerate(points):
+        if len(p) != 4 or not all(np.isfinite(p)) or p[3] < 0:
+            raise ValueError(f"{who}.contacts[{k}] must be four finite numbers (x, y, z, radius) with radius >= 0, "
+                             f"got {p!r}")
+    return points
 
 
 def _traced(x) -> bool:
@@ -142,6 +161,10 @@ class Tree(eqx.Module):
         bodies: :class:`Body` s, parents before children.
         gravity: the gravitational acceleration vector [m/s^2] in the world frame (MuJoCo's ``opt.gravity``).
         motors: the :class:`Motor` s, in the order of the controls ``u``.
+        contact: the ground contact law (:class:`lagrange.PenaltyContact`; its ``ground`` the height of the level
+            plane ``z = ground``) pressing the bodies' ``contacts``; given exactly when some body has contact points.
+        limits: the joint limit law (:class:`lagrange.PenaltyLimits`) for the hinges and slides with a ``range``;
+            given exactly when some joint has one.
 
     Attributes:
         nq, nv, m: the numbers of coordinates, velocities and controls.
@@ -158,13 +181,16 @@ class Tree(eqx.Module):
     bodies: tuple[Body, ...]
     gravity: Float[Array, "3"]
     motors: tuple[Motor, ...]
+    contact: PenaltyContact | None
+    limits: PenaltyLimits | None
     parents: tuple[int, ...] = eqx.field(static=True)
     joint_body: tuple[int, ...] = eqx.field(static=True)
     qadr: tuple[int, ...] = eqx.field(static=True)
     vadr: tuple[int, ...] = eqx.field(static=True)
 
     def __init__(self, bodies: Sequence[Body], gravity: Float[ArrayLike, "3"] = (0.0, 0.0, -9.81), *,
-                 motors: Sequence[Motor] = ()):
+                 motors: Sequence[Motor] = (), contact: PenaltyContact | None = None,
+                 limits: PenaltyLimits | None = None):
         bodies = (bodies,) if isinstance(bodies, Body) else tuple(bodies)
         if not bodies:
             raise ValueError("Tree.bodies must hold at least one Body")
@@ -207,6 +233,23 @@ class Tree(eqx.Module):
                 raise ValueError(f"Tree.motors[{k}]: joint {mo.joint} already has a motor")
             seen.add(mo.joint)
         self.motors = motors
+        touching = [i for i, b in enumerate(bodies) if b.contacts]
+        limited = [k for k, j in enumerate(self.joints) if getattr(j, "range", None) is not None]
+        if contact is not None and not isinstance(contact, PenaltyContact):
+            raise TypeError(f"Tree.contact must be a lagrange.PenaltyContact or None, got {type(contact).__name__}")
+        if limits is not None and not isinstance(limits, PenaltyLimits):
+            raise TypeError(f"Tree.limits must be a lagrange.PenaltyLimits or None, got {type(limits).__name__}")
+        if (contact is None) != (not touching):
+            raise ValueError(f"Tree: bodies {touching} have contact points but the tree has no contact law: pass "
+                             "Tree(..., contact=lagrange.PenaltyContact(ke, kd, kf, mu)), or drop the points"
+                             if contact is None else "Tree.contact is given but no body has contact points: give "
+                             "bodies Body(..., contacts=[(x, y, z, radius), ...]), or drop contact")
+        if (limits is None) != (not limited):
+            raise ValueError(f"Tree: joints {limited} have a range but the tree has no limit law: pass "
+                             "Tree(..., limits=lagrange.PenaltyLimits(ke, kd)), or drop the ranges"
+                             if limits is None else "Tree.limits is given but no joint has a range: give hinges or "
+                             "slides Hinge(..., range=(lower, upper)), or drop limits")
+        self.contact, self.limits = contact, limits
 
     @property
     def joints(self) -> tuple[AbstractJoint, ...]:

@@ -20,7 +20,8 @@ import numpy as np
 from lagrange import _spatial as al
 from lagrange.joints import Ball, Free
 from lagrange.spatial.crba import crba
-from lagrange.spatial.forces import actuation, passive, per_dof, spring_potential
+from lagrange.spatial.contact import contact_energy, contact_wrenches
+from lagrange.spatial.forces import actuation, limit_energy, limit_forces, passive, per_dof, spring_potential
 from lagrange.spatial.kinematics import Kinematics
 from lagrange.spatial.rnea import rnea
 from lagrange.tree import WORLD, Tree
@@ -46,10 +47,26 @@ def mass_matrix(tree: Tree, q):
     return crba(Kinematics(tree, _broadcast(q)[0]))
 
 
+def _external(k: Kinematics):
+    """The contact forces on the links, or ``None`` without contact."""
+    return None if k.tree.contact is None else contact_wrenches(k)
+
+
+def _applied(tree: Tree, q, qd):
+    """The joints' dampers and springs and the limits' penalty forces, ``(..., nv)`` or ``None``."""
+    out = None
+    for tau in (passive(tree, q, qd), limit_forces(tree, q, qd)):
+        if tau is not None:
+            out = tau if out is None else out + tau
+    return out
+
+
 def bias_forces(tree: Tree, q, qd):
-    """``qfrc_bias - qfrc_passive``: velocity products, gravity, minus the dampers' and springs' forces."""
+    """``qfrc_bias - qfrc_passive`` (velocity products, gravity, minus the dampers' and springs' forces), minus the
+    limits' and the contact's generalized forces."""
     q, qd = _broadcast(q, qd)
-    return _minus(rnea(Kinematics(tree, q, qd)), passive(tree, q, qd))
+    k = Kinematics(tree, q, qd)
+    return _minus(rnea(k, external=_external(k)), _applied(tree, q, qd))
 
 
 def gravity_forces(tree: Tree, q):
@@ -69,12 +86,16 @@ def inverse_dynamics(tree: Tree, q, qd, qdd):
 
 def forward_dynamics(tree: Tree, q, qd, u=None, implicit_damping_dt=None, *, pivots: bool = False, external=None):
     """``qdd`` (and with ``pivots``, where the factorisation fails) under the motors' ``u``, the dampers and springs,
-    and ``external`` spatial forces on the links (``(..., n, 6)``, e.g. contact) if given: ``M qdd = tau - bias``
-    solved by a Cholesky factorisation of ``M`` (``M + h diag(damping)`` with ``implicit_damping_dt = h``)."""
+    the limits, the ground contact and ``external`` spatial forces on the links (``(..., n, 6)``) if given:
+    ``M qdd = tau - bias`` solved by a Cholesky factorisation of ``M`` (``M + h diag(damping)`` with
+    ``implicit_damping_dt = h``)."""
     q, qd, u = _broadcast(q, qd, None if u is None or tree.m == 0 else u)
     k = Kinematics(tree, q, qd)
+    contact = _external(k)
+    if contact is not None:
+        external = contact if external is None else external + contact
     rhs = -rnea(k, external=external)
-    for tau in (actuation(tree, u), passive(tree, q, qd)):
+    for tau in (actuation(tree, u), _applied(tree, q, qd)):
         if tau is not None:
             rhs = rhs + tau
     M = crba(k)
@@ -90,7 +111,8 @@ def forward_dynamics(tree: Tree, q, qd, u=None, implicit_damping_dt=None, *, piv
 
 
 def energy(tree: Tree, q, qd):
-    """``(kinetic, potential)``: ``1/2 qd^T M qd`` (armature included) and gravity's and the springs' potential."""
+    """``(kinetic, potential)``: ``1/2 qd^T M qd`` (armature included) and the potential of gravity, the springs,
+    the limits and the contact."""
     q, qd = _broadcast(q, qd)
     k = Kinematics(tree, q, qd)
     kin = 0.5 * jnp.sum(k.v * al.rigid_apply(k.m, k.h, k.J, k.v), axis=(-2, -1))
@@ -100,8 +122,11 @@ def energy(tree: Tree, q, qd):
     g = jnp.asarray(tree.gravity, q.dtype)
     # gravity's potential: -m g . x_com over the links (their first moments about the reference points, plus m o)
     pot = -jnp.sum((k.h + k.m[:, None] * k.o) * g, axis=(-2, -1))
-    springs = spring_potential(tree, q)
-    return kin, pot if springs is None else pot + springs
+    for extra in (spring_potential(tree, q), limit_energy(tree, q),
+                  None if tree.contact is None else contact_energy(k)):
+        if extra is not None:
+            pot = pot + extra
+    return kin, pot
 
 
 def _body_frames(tree: Tree, q):

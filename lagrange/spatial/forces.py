@@ -11,7 +11,7 @@ from lagrange.actuation import actuation_matrix, clamp_controls
 from lagrange.joints import Free
 from lagrange.tree import Tree
 
-__all__ = ["actuation", "passive", "per_dof", "spring_potential"]
+__all__ = ["actuation", "limit_energy", "limit_forces", "passive", "per_dof", "spring_potential"]
 
 
 def _zero(x) -> bool:
@@ -70,3 +70,29 @@ def actuation(tree: Tree, u):
         return None
     u = clamp_controls(tree, u)
     return jnp.einsum("ij,...j->...i", actuation_matrix(tree).astype(u.dtype), u)
+
+
+def _limited(tree: Tree):
+    """``(coordinate indices, velocity indices, lower, upper)`` of the hinges and slides with a ``range``."""
+    idx = [k for k, j in enumerate(tree.joints) if getattr(j, "range", None) is not None]
+    lo = np.array([tree.joints[k].range[0] for k in idx])
+    hi = np.array([tree.joints[k].range[1] for k in idx])
+    return np.array([tree.qadr[k] for k in idx], int), np.array([tree.vadr[k] for k in idx], int), lo, hi
+
+
+def limit_forces(tree: Tree, q, qd):
+    """The limits' generalized forces ``(..., nv)`` (:class:`lagrange.PenaltyLimits`); ``None`` without limits."""
+    if tree.limits is None:
+        return None
+    qa, va, lo, hi = _limited(tree)
+    tau = tree.limits.forces(q[..., qa], qd[..., va], jnp.asarray(lo, q.dtype), jnp.asarray(hi, q.dtype))
+    E = (np.arange(tree.nv)[:, None] == va[None, :]).astype(float)
+    return jnp.einsum("...k,ik->...i", tau, jnp.asarray(E, q.dtype))
+
+
+def limit_energy(tree: Tree, q):
+    """The limit springs' potential energy ``(...)``; ``None`` without limits."""
+    if tree.limits is None:
+        return None
+    qa, _, lo, hi = _limited(tree)
+    return jnp.sum(tree.limits.energy(q[..., qa], jnp.asarray(lo, q.dtype), jnp.asarray(hi, q.dtype)), axis=-1)

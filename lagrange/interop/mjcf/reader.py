@@ -145,9 +145,10 @@ def from_mjcf(source, *, limits: str | PenaltyLimits = "raise", contact: str | P
             contact: exact while nothing touches, e.g. a walker in the air), or a :class:`lagrange.PenaltyContact`:
             ground contact, DFlex's penalty law, not MuJoCo's soft-constraint solver. The ground is the model's one
             plane geom of the world body (its height replaces the law's ``ground``); the contact points come from
-            the capsules (both end points) and spheres (the centre), each with its radius, that MuJoCo's
-            ``contype``/``conaffinity`` rule lets touch that plane; any other geom type that can touch it is
-            refused by name. Contacts between the model's own geoms are left out (DFlex has none).
+            the capsules (both end points) and spheres (the centre), each with its radius, and for a tree the boxes
+            (their corners), that MuJoCo's ``contype``/``conaffinity`` rule lets touch that plane; any other geom type
+            that can touch it is refused by name. Contacts between the model's own geoms are left out (DFlex has
+            none).
 
         tree: ``None`` (a chain when the model is planar, else a tree), ``True`` (a tree) or ``False`` (a chain, or
             refuse).
@@ -162,8 +163,8 @@ def from_mjcf(source, *, limits: str | PenaltyLimits = "raise", contact: str | P
         NotImplementedError: naming the element, for what neither can reproduce (:func:`.refusals.refuse`):
             contacts that can occur (with ``contact="raise"``), friction loss, tendons that carry force, equality
             constraints, gravity compensation, fluid forces, actuators other than motors with a positive gear on a
-            hinge or slide, force limits, two motors on one joint; for a tree, penalty limits and contact (3-D
-            contact is not implemented yet: ``limits="ignore"``, ``contact="ignore"``); with ``tree=False``, what
+            hinge or slide, force limits, two motors on one joint; for a tree, a limited ball joint with penalty
+            limits and a limited tendon unless ``limits="ignore"``; with ``tree=False``, what
             only a tree can hold (ball or free joints, hinges not parallel, slides out of the plane).
     """
     if not isinstance(limits, PenaltyLimits) and limits not in LIMITS:
@@ -183,11 +184,7 @@ def from_mjcf(source, *, limits: str | PenaltyLimits = "raise", contact: str | P
     plane = None if tree else _planar(mujoco, model, data)
     if plane is None and tree is not False:
         refuse(mujoco, model, limits, contact, planar=False)
-        for law, name in ((limits, "limits"), (contact, "contact")):
-            if not isinstance(law, str):
-                raise NotImplementedError(f"from_mjcf: {name}={type(law).__name__}(...) on a 3-D tree is not supported "
-                                          f"yet; {name}=\"ignore\" loads the model without it")
-        return tree_from_model(mujoco, model)
+        return tree_from_model(mujoco, model, limits, contact)
     refuse(mujoco, model, limits, contact, planar=True)
     (X, Y, Z), G = _plane(mujoco, model, data) if plane is None else plane
     origin = np.array(data.xanchor[0])

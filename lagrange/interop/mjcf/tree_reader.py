@@ -11,7 +11,10 @@ from __future__ import annotations
 import numpy as np
 
 from lagrange._spatial import quat_to_matrix
+from lagrange.contact import PenaltyContact
+from lagrange.interop.mjcf.refusals import contact_pairs, element_name, is_limited
 from lagrange.joints import Ball, Free, Hinge, Slide
+from lagrange.limits import PenaltyLimits
 from lagrange.tree import Body, Motor, Tree
 
 __all__ = ["tree_from_model"]
@@ -24,8 +27,13 @@ def _clean(x):
     return x
 
 
-def _joint(mujoco, model, j):
+def _joint(mujoco, model, j, limits):
     kind = mujoco.mjtJoint(model.jnt_type[j])
+    limited = isinstance(limits, PenaltyLimits) and is_limited(mujoco, model, j)
+    if limited and kind == mujoco.mjtJoint.mjJNT_BALL:
+        raise NotImplementedError(f"from_mjcf: {element_name(mujoco, model, 'joint', j)} is a limited ball joint; "
+                                  "PenaltyLimits presses hinges and slides only: limits=\"ignore\" loads it without "
+                                  "the limit (exact while it is not reached)")
     d, a = int(model.jnt_dofadr[j]), int(model.jnt_qposadr[j])
     off = model.opt.disableflags
     bit = mujoco.mjtDisableBit
@@ -35,24 +43,65 @@ def _joint(mujoco, model, j):
     if kind in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
         cls = Hinge if kind == mujoco.mjtJoint.mjJNT_HINGE else Slide
         return cls(_clean(model.jnt_axis[j]), _clean(model.jnt_pos[j]), ref=float(model.qpos0[a]),
-                   springref=float(model.qpos_spring[a]), **common)
+                   springref=float(model.qpos_spring[a]),
+                   range=tuple(float(x) for x in model.jnt_range[j]) if limited else None, **common)
     if kind == mujoco.mjtJoint.mjJNT_BALL:
         return Ball(_clean(model.jnt_pos[j]), springref=np.array(model.qpos_spring[a: a + 4]), **common)
     return Free(springref=np.array(model.qpos_spring[a: a + 7]), **common)
 
 
-def tree_from_model(mujoco, model) -> Tree:
+def _contacts(mujoco, model):
+    """``({body: [(x, y, z, radius), ...]}, height)``: the contact points, in their bodies' frames, of the geoms that
+    MuJoCo's ``contype``/``conaffinity`` rule lets touch the ground (the world's one plane geom, level), and the
+    ground's height: both end points of a capsule, a sphere's centre, a box's eight corners (radius 0)."""
+    nm = lambda kind, i: element_name(mujoco, model, kind, i)  # noqa: E731
+    kinds = mujoco.mjtGeom
+    planes = [g for g in range(model.ngeom) if model.geom_type[g] == kinds.mjGEOM_PLANE and model.geom_bodyid[g] == 0]
+    if len(planes) != 1:
+        raise NotImplementedError(f"from_mjcf: contact=PenaltyContact(...) presses the model against its ground, the "
+                                  f"one plane geom of the world body; the model has {len(planes)}")
+    plane = planes[0]
+    normal = quat_to_matrix(np.asarray(model.geom_quat[plane], float), np)[:, 2]
+    if normal[2] < 1 - 1e-9:
+        raise NotImplementedError(f"from_mjcf: the ground {nm('geom', plane)} is not level (its normal "
+                                  f"{normal.round(6).tolist()} is not +z)")
+    points: dict[int, list] = {}
+    for g in sorted({g for pair in contact_pairs(mujoco, model) if plane in pair for g in pair if g != plane}):
+        body = int(model.geom_bodyid[g])
+        if body == 0:
+            continue  # another static geom of the world
+        R = quat_to_matrix(np.asarray(model.geom_quat[g], float), np)
+        centre, size = np.asarray(model.geom_pos[g], float), np.asarray(model.geom_size[g], float)
+        if model.geom_type[g] == kinds.mjGEOM_CAPSULE:
+            new = [(centre - R[:, 2] * size[1], size[0]), (centre + R[:, 2] * size[1], size[0])]
+        elif model.geom_type[g] == kinds.mjGEOM_SPHERE:
+            new = [(centre, size[0])]
+        elif model.geom_type[g] == kinds.mjGEOM_BOX:
+            new = [(centre + R @ (np.array(signs) * size), 0.0)
+                   for signs in ((sx, sy, sz) for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1))]
+        else:
+            raise NotImplementedError(
+                f"from_mjcf: {nm('geom', g)} is a {kinds(model.geom_type[g]).name[7:].lower()} that can touch the "
+                "ground; PenaltyContact takes capsules, spheres and boxes: replace it, or set its contype and "
+                "conaffinity to 0")
+        points.setdefault(body, []).extend((*_clean(c).tolist(), float(r)) for c, r in new)
+    return points, float(model.geom_pos[plane][2])
+
+
+def tree_from_model(mujoco, model, limits="ignore", contact="ignore") -> Tree:
     """The :class:`~lagrange.tree.Tree` of a compiled ``mujoco.MjModel`` (its refusals already made by the
-    caller: :func:`lagrange.interop.mjcf.from_mjcf`)."""
+    caller: :func:`lagrange.interop.mjcf.from_mjcf`), with ``PenaltyLimits`` on its limited hinges and slides and
+    ``PenaltyContact`` on the geoms that can touch its ground where those are given."""
+    points, height = _contacts(mujoco, model) if isinstance(contact, PenaltyContact) else ({}, 0.0)
     bodies = []
     for b in range(1, model.nbody):
         R = quat_to_matrix(np.asarray(model.body_iquat[b], float), np)
         inertia = _clean(R @ np.diag(model.body_inertia[b]) @ R.T)
-        joints = [_joint(mujoco, model, j) for j in range(model.njnt) if model.jnt_bodyid[j] == b]
+        joints = [_joint(mujoco, model, j, limits) for j in range(model.njnt) if model.jnt_bodyid[j] == b]
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or None
         bodies.append(Body(float(model.body_mass[b]), inertia, _clean(model.body_ipos[b]), joints=joints,
                            parent=int(model.body_parentid[b]) - 1, pos=_clean(model.body_pos[b]),
-                           quat=_clean(model.body_quat[b]), name=name))
+                           quat=_clean(model.body_quat[b]), contacts=points.get(b, ()), name=name))
     off = model.opt.disableflags
     gravity = np.zeros(3) if off & mujoco.mjtDisableBit.mjDSBL_GRAVITY else _clean(model.opt.gravity)
     clamp = not off & mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL
@@ -62,4 +111,8 @@ def tree_from_model(mujoco, model) -> Tree:
                          if clamp and model.actuator_ctrllimited[a] else None)
         motors.append(Motor(int(model.actuator_trnid[a, 0]), float(model.actuator_gear[a, 0]
                                                                   * model.actuator_gainprm[a, 0]), control_range))
-    return Tree(bodies, gravity, motors=motors)
+    law = None
+    if points:
+        law = PenaltyContact(contact.ke, contact.kd, contact.kf, contact.mu, height)
+    limited = any(getattr(j, "range", None) is not None for body in bodies for j in body.joints)
+    return Tree(bodies, gravity, motors=motors, contact=law, limits=limits if limited else None)

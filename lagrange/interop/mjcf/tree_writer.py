@@ -64,6 +64,12 @@ def _joint(tree: Tree, k: int, j, b: int) -> str:
 
 def tree_mjcf(tree: Tree, timestep: float, integrator: str, name: str, tiny: float) -> str:
     """The MJCF string of ``tree`` (arguments checked by :func:`lagrange.interop.mjcf.to_mjcf`)."""
+    for law, name in ((tree.contact, "contact"), (tree.limits, "limits")):
+        if law is not None:
+            raise NotImplementedError(f"to_mjcf: the tree has a {name} law ({type(law).__name__}), which MJCF cannot "
+                                      "state (MuJoCo's contact and limits are constraints, not penalties); write "
+                                      f"the tree without it: Tree(..., {name}=None) and no "
+                                      f"{'contact points' if name == 'contact' else 'joint ranges'}")
     gravity = _concrete(tree.gravity, "Tree.gravity")
     lines = [f'<mujoco model="{name}">',
              '  <compiler angle="radian" inertiafromgeom="false" autolimits="false"/>',
