@@ -15,8 +15,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from lagrange import _spatial as al
-from lagrange.spatial.kinematics import Kinematics, _pose
-from lagrange.tree import WORLD, Tree
+from lagrange.spatial.kinematics import Kinematics, body_frames_in_links
+from lagrange.tree import Tree
 
 __all__ = ["contact_energy", "contact_spots", "contact_wrenches"]
 
@@ -24,21 +24,11 @@ __all__ = ["contact_energy", "contact_spots", "contact_wrenches"]
 def _points(tree: Tree, structure):
     """``(links (k,), points (k, 3), radii (k,))``: every contact point in its link's frame (a body welded below a
     link's body carried into that link's frame), leaving out bodies welded to the world (they cannot move)."""
-    frame, links, points, radii = {}, [], [], []
-    for b, body in enumerate(tree.bodies):
-        link = structure.body_link[b]
-        if link == WORLD:
-            continue
-        if structure.link_body[link] == b:
-            frame[b] = (np.eye(3), np.zeros(3))
-        else:
-            Rp, pp = frame[tree.parents[b]]
-            Rb, pb = _pose(body)
-            frame[b] = (Rp @ np.asarray(Rb), pp + Rp @ np.asarray(pb))
-        R, p = frame[b]
-        for x, y, z, r in body.contacts:
-            links.append(link)
-            points.append(p + R @ np.array([x, y, z]))
+    links, points, radii = [], [], []
+    for b, (R, p) in body_frames_in_links(structure).items():
+        for x, y, z, r in tree.bodies[b].contacts:
+            links.append(structure.body_link[b])
+            points.append(np.asarray(p) + np.asarray(R) @ np.array([x, y, z]))
             radii.append(r)
     return np.array(links, int), np.array(points).reshape(-1, 3), np.array(radii)
 

@@ -18,7 +18,7 @@ from lagrange import _spatial as al
 from lagrange.spatial.structure import Structure
 from lagrange.tree import WORLD, Tree
 
-__all__ = ["Kinematics", "placements", "link_inertias"]
+__all__ = ["Kinematics", "body_frames_in_links", "placements", "link_inertias"]
 
 
 def _xp(*xs):
@@ -67,13 +67,11 @@ def placements(structure: Structure):
     return xp.stack(Rs), xp.stack(ps)
 
 
-def link_inertias(structure: Structure):
-    """Each link's mass, centre of mass and rotational inertia about it, in the link's frame after its joint: the
-    body its joint moves last and the bodies welded below it, combined (parallel axes). ``(m (n,), c (n, 3),
-    Ic (n, 3, 3))``; a link that moves no body (an inner joint of a body) has zeros."""
+def body_frames_in_links(structure: Structure) -> dict:
+    """``{body: (R, p)}``: every body's frame in the frame of the link that carries it (the identity for the body a
+    link's joint moves; a body welded below it placed through the welded bodies between), leaving out the bodies
+    welded to the world."""
     tree = structure.tree
-    n = structure.n
-    parts = [[] for _ in range(n)]  # per link: (R, p, body) of the bodies it carries, in its frame
     frame = {}
     for b, body in enumerate(tree.bodies):
         k = structure.body_link[b]
@@ -86,7 +84,18 @@ def link_inertias(structure: Structure):
             Rb, pb = _pose(body)
             xp = _xp(Rp, pp, Rb, pb)
             frame[b] = (Rp @ Rb, pp + Rp @ pb) if xp is np else (jnp.asarray(Rp) @ Rb, pp + jnp.asarray(Rp) @ pb)
-        parts[k].append((*frame[b], body))
+    return frame
+
+
+def link_inertias(structure: Structure):
+    """Each link's mass, centre of mass and rotational inertia about it, in the link's frame after its joint: the
+    body its joint moves last and the bodies welded below it, combined (parallel axes). ``(m (n,), c (n, 3),
+    Ic (n, 3, 3))``; a link that moves no body (an inner joint of a body) has zeros."""
+    tree = structure.tree
+    n = structure.n
+    parts = [[] for _ in range(n)]  # per link: (R, p, body) of the bodies it carries, in its frame
+    for b, (R, p) in body_frames_in_links(structure).items():
+        parts[structure.body_link[b]].append((R, p, tree.bodies[b]))
     ms, cs, Is = [], [], []
     for k in range(n):
         bodies = [(R, p, _value(body.mass), _value(body.com), _value(body.inertia)) for R, p, body in parts[k]]
