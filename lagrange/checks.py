@@ -79,16 +79,16 @@ def check_array(name: str, value, shape: tuple[int, ...] = (), *, nonnegative: b
     return jax.device_put(c.astype(jax.dtypes.canonicalize_dtype(float)))
 
 
-def check_pair(name: str, value) -> tuple[float, float] | None:
-    """``None`` or ``(lo, hi)`` as floats with ``lo < hi``, both finite, else an error naming ``Link.name``."""
+def check_pair(name: str, value, owner: str = "Link") -> tuple[float, float] | None:
+    """``None`` or ``(lo, hi)`` as floats with ``lo < hi``, both finite, else an error naming ``owner.name``."""
     if value is None:
         return None
     try:
         lo, hi = (float(x) for x in value)
     except (TypeError, ValueError) as err:
-        raise TypeError(f"Link.{name} must be a pair (lower, upper) of numbers or None, got {value!r}") from err
+        raise TypeError(f"{owner}.{name} must be a pair (lower, upper) of numbers or None, got {value!r}") from err
     if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-        raise ValueError(f"Link.{name} must be finite with lower < upper, got {value!r}")
+        raise ValueError(f"{owner}.{name} must be finite with lower < upper, got {value!r}")
     return lo, hi
 
 

@@ -35,7 +35,7 @@ import numpy as np
 from jaxtyping import ArrayLike, Float
 
 from lagrange._sincos import sincos
-from lagrange.checks import check_array
+from lagrange.checks import check_array, check_pair
 from lagrange import _spatial as al
 
 __all__ = ["AbstractJoint", "Ball", "Free", "Hinge", "Slide", "JOINTS"]
@@ -130,15 +130,7 @@ class _AxisJoint(AbstractJoint):
     def __init__(self, axis=(0.0, 0.0, 1.0), pos=(0.0, 0.0, 0.0), *, ref=0.0, damping=0.0, armature=0.0,
                  stiffness=0.0, springref=None, range=None):
         name = type(self).__name__
-        if range is not None:
-            try:
-                lo, hi = (float(x) for x in range)
-            except (TypeError, ValueError) as err:
-                raise TypeError(f"{name}.range must be (lower, upper) or None, got {range!r}") from err
-            if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
-                raise ValueError(f"{name}.range must be finite with lower < upper, got {range!r}")
-            range = (lo, hi)
-        self.range = range
+        self.range = check_pair("range", range, owner=name)
         self.axis = _axis(name, axis)
         self.pos = check_array(f"{name}.pos", pos, (3,))
         self.ref = check_array(f"{name}.ref", ref)

@@ -17,7 +17,7 @@ import numpy as np
 from lagrange.chain import WORLD, Chain, Link
 from lagrange.contact import PenaltyContact
 from lagrange.limits import PenaltyLimits
-from lagrange.interop.mjcf.refusals import contact_pairs, element_name, is_limited, refuse
+from lagrange.interop.mjcf.refusals import contact_pairs, element_name, ground_plane, is_limited, refuse
 from lagrange.interop.mjcf.runtime import compile_model, import_mujoco
 from lagrange.interop.mjcf.tree_reader import tree_from_model
 from lagrange.tree import Tree
@@ -299,11 +299,7 @@ def _ground_contacts(mujoco, model, data, last_joint, origin, Z, to2):
     rigid group): ``{link: [(point in the plane at qpos = 0, radius), ...]}``; and the plane's height."""
     nm = lambda kind, i: element_name(mujoco, model, kind, i)  # noqa: E731
     kinds = mujoco.mjtGeom
-    planes = [g for g in range(model.ngeom) if model.geom_type[g] == kinds.mjGEOM_PLANE and model.geom_bodyid[g] == 0]
-    if len(planes) != 1:
-        raise NotImplementedError(f"from_mjcf: contact=PenaltyContact(...) presses the model against its ground, the "
-                                  f"one plane geom of the world body; the model has {len(planes)}")
-    plane = planes[0]
+    plane = ground_plane(mujoco, model)
     normal = np.array(data.geom_xmat[plane]).reshape(3, 3)[:, 2]
     if abs(normal @ Z) < 1 - 1e-9:
         raise NotImplementedError(f"from_mjcf: the ground {nm('geom', plane)} is not level in the chain's plane (its "

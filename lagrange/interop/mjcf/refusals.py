@@ -144,6 +144,17 @@ def refuse_contacts(mujoco, model, nm) -> None:
                                   f"{way_out}")
 
 
+def ground_plane(mujoco, model) -> int:
+    """The ground that ``PenaltyContact`` presses a model against: the world body's one plane geom (its index), else
+    an error naming how many there are."""
+    planes = [g for g in range(model.ngeom)
+              if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE and model.geom_bodyid[g] == 0]
+    if len(planes) != 1:
+        raise NotImplementedError(f"from_mjcf: contact=PenaltyContact(...) presses the model against its ground, the "
+                                  f"one plane geom of the world body; the model has {len(planes)}")
+    return planes[0]
+
+
 def contact_pairs(mujoco, model) -> list[tuple[int, int]]:
     """Every pair of geoms that MuJoCo's collision driver would test.
 

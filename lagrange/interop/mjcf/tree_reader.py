@@ -12,7 +12,7 @@ import numpy as np
 
 from lagrange._spatial import quat_to_matrix
 from lagrange.contact import PenaltyContact
-from lagrange.interop.mjcf.refusals import contact_pairs, element_name, is_limited
+from lagrange.interop.mjcf.refusals import contact_pairs, element_name, ground_plane, is_limited
 from lagrange.joints import Ball, Free, Hinge, Slide
 from lagrange.limits import PenaltyLimits
 from lagrange.tree import Body, Motor, Tree
@@ -56,11 +56,7 @@ def _contacts(mujoco, model):
     ground's height: both end points of a capsule, a sphere's centre, a box's eight corners (radius 0)."""
     nm = lambda kind, i: element_name(mujoco, model, kind, i)  # noqa: E731
     kinds = mujoco.mjtGeom
-    planes = [g for g in range(model.ngeom) if model.geom_type[g] == kinds.mjGEOM_PLANE and model.geom_bodyid[g] == 0]
-    if len(planes) != 1:
-        raise NotImplementedError(f"from_mjcf: contact=PenaltyContact(...) presses the model against its ground, the "
-                                  f"one plane geom of the world body; the model has {len(planes)}")
-    plane = planes[0]
+    plane = ground_plane(mujoco, model)
     normal = quat_to_matrix(np.asarray(model.geom_quat[plane], float), np)[:, 2]
     if normal[2] < 1 - 1e-9:
         raise NotImplementedError(f"from_mjcf: the ground {nm('geom', plane)} is not level (its normal "
