@@ -1,4 +1,5 @@
-"""3-D trees beside MuJoCo C: semi-implicit Euler steps of dm_control's humanoid and Gymnasium's ant in free flight.
+"""3-D trees beside MuJoCo C: semi-implicit Euler steps of dm_control's humanoid and Gymnasium's ant in free flight,
+and of the ant on the ground.
 
     python -m benchmarks.trees3d              # B = 1024, 50 steps, float64
     python -m benchmarks.trees3d --batch 64   # smaller
@@ -7,8 +8,9 @@ For each model (constraints disabled, MuJoCo's Euler integrator, the tree read b
 microseconds per environment-step of lagrange's ``simulate`` (``jax.vmap`` over the batch, one jitted program)
 against MuJoCo C's ``mujoco.rollout`` with 2 threads on the same states and controls, the minimum of 3 repeats, both
 in one process; the gradient of a loss of the final state through lagrange's rollout (``jax.grad``); and the
-compile times of forward dynamics and of the rollout's gradient. Writes ``benchmarks/results/trees3d.{json,md}``
-(``--batch`` other than 1024: ``runs/benchmarks/``).
+compile times of forward dynamics and of the rollout's gradient. On the ground (:func:`on_the_ground`): Gymnasium's
+ant with DFlex's contact and limit laws at its 1/960 s substep beside MuJoCo C with its own contact at that step,
+forward only. Writes ``benchmarks/results/trees3d.{json,md}`` (``--batch`` other than 1024: ``runs/benchmarks/``).
 """
 
 from __future__ import annotations
@@ -93,15 +95,50 @@ def measure(name, B, T):
                 compile_rollout_gradient_s=compile_grad, final_qpos_max_abs_diff=err)
 
 
+DFLEX_ANT = dict(contact=(4e4, 1e4, 3e3, 0.75), limits=(1e3, 10.0), dt=1.0 / 960)  # paper-facts.md, SHAC's Ant
+
+
+def on_the_ground(B, T):
+    """Gymnasium's ant standing on the ground at DFlex's contact and limit laws and substep (1/960 s), semi-implicit
+    Euler, against MuJoCo C with its own contact on the same model at the same step (different contact models doing
+    the same job): µs per env-step, forward."""
+    path = gymnasium_model("ant")
+    model = mujoco.MjModel.from_xml_path(str(path))
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    model.opt.timestep = DFLEX_ANT["dt"]
+    tree = from_mjcf(path, contact=lg.PenaltyContact(*DFLEX_ANT["contact"]),
+                     limits=lg.PenaltyLimits(*DFLEX_ANT["limits"]))
+    rng = np.random.default_rng(0)
+    q0 = np.repeat(np.asarray(model.qpos0, float)[None], B, axis=0)
+    q0[:, 7:] += rng.uniform(-0.1, 0.1, (B, model.nq - 7))
+    qd0 = rng.uniform(-0.25, 0.25, (B, model.nv))
+    us = rng.uniform(-1, 1, (B, T, model.nu))
+    forward = jax.jit(jax.vmap(lambda q, qd, u: lg.simulate(tree, q, qd, u, DFLEX_ANT["dt"], lg.SemiImplicitEuler(),
+                                                            check=False).q[-1]))
+    args = tuple(jnp.asarray(x) for x in (q0, qd0, us))
+    ours = median_time(forward, *args, repeats=3, best=True) / (B * T)
+    finite = bool(np.all(np.isfinite(np.asarray(forward(*args)))))
+    datas = [mujoco.MjData(model) for _ in range(2)]
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    x0 = np.zeros((B, mujoco.mj_stateSize(model, spec)))
+    x0[:, 1: 1 + model.nq], x0[:, 1 + model.nq: 1 + model.nq + model.nv] = q0, qd0
+    state = np.empty((B, T, x0.shape[1]))
+    mj = median_time(lambda: rollout.rollout(model, datas, x0, us, nstep=T, state=state, persistent_pool=True),
+                     repeats=3, best=True) / (B * T)
+    return dict(nv=model.nv, batch=B, steps=T, dt=DFLEX_ANT["dt"], lagrange_us=ours * 1e6, mujoco_c_us=mj * 1e6,
+                speedup=mj / ours, finite=finite)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--batch", type=int, default=1024)
     ap.add_argument("--steps", type=int, default=50)
     args = ap.parse_args()
     rows = {name: measure(name, args.batch, args.steps) for name in MODELS}
+    ground = on_the_ground(args.batch, args.steps)
     folder = outputs(args.batch != 1024)[0]
     folder.mkdir(parents=True, exist_ok=True)
-    write_json(folder / "trees3d.json", rows, indent=2)
+    write_json(folder / "trees3d.json", dict(rows, **{"Gymnasium ant on the ground": ground}), indent=2)
     lines = ["| model | nv | lagrange µs/env-step | MuJoCo C (2 threads) µs | lagrange / MuJoCo C speed | "
              "lagrange gradient µs | compile: forward dynamics, rollout gradient |",
              "|---|---:|---:|---:|---:|---:|---|"]
@@ -109,6 +146,12 @@ def main():
         lines.append(f"| {name} | {r['nv']} | {r['lagrange_us']:.1f} | {r['mujoco_c_us']:.1f} | {r['speedup']:.2f}x | "
                      f"{r['lagrange_grad_us']:.1f} | {r['compile_forward_dynamics_s']:.1f} s, "
                      f"{r['compile_rollout_gradient_s']:.1f} s |")
+    lines += ["", "On the ground (DFlex's ant laws, semi-implicit Euler at 1/960 s; MuJoCo C with its own contact at "
+              "the same step):", "",
+              "| model | nv | lagrange µs/env-step | MuJoCo C (2 threads) µs | lagrange / MuJoCo C speed |",
+              "|---|---:|---:|---:|---:|",
+              f"| Gymnasium ant on the ground | {ground['nv']} | {ground['lagrange_us']:.1f} | "
+              f"{ground['mujoco_c_us']:.1f} | {ground['speedup']:.2f}x |"]
     write_text(folder / "trees3d.md", "\n".join(lines) + "\n")
     print("\n".join(lines))
     for name, r in rows.items():
