@@ -4,14 +4,13 @@
 
 Gymnasium's ant (``PenaltyLimits(1e3, 10)`` on its limited hinges) and humanoid (``limits="ignore"``: its limited
 tendons have no penalty form) with ``PenaltyContact(ke, kd, kf, 0.9)``, dropped unactuated from 0.5 m above
-``qpos0`` (limited joints clipped into their ranges) at three tilts of the root, for 1.5 s. "Stable": every state finite and the energy (penalty springs included)
-never more than ``M g * 1 m`` above its start; steps on a grid of ratio sqrt(2) from 40 ms down, the largest stable
-one reported. "Damped": ``kd = kf = 1e3``; "conservative": ``kd = kf = 0``, the joints' damping as written. The
-estimate ``2 sqrt(m_eff / ke)`` uses the lightest contact point's effective mass ``1 / (J M^-1 J^T)`` (``J`` its
-vertical velocity's Jacobian) at the first tilt's landing pose. Float64. Writes
-``benchmarks/results/contact3d.{json,md}`` and ``docs/img/ant_drop.png`` (the ant's height and energy at two
-steps; ``--figure-only``: the figure alone).
-"""
+``qpos0`` (limited joints clipped into their ranges) at three tilts of the root, for 1.5 s. "Stable": every state
+finite and the energy (penalty springs included) never more than ``M g * 1 m`` above its start; steps on a grid of
+ratio sqrt(2) from 40 ms down, the largest stable one reported. "Damped": ``kd = kf = 1e3``; "conservative": ``kd =
+kf = 0``, the joints' damping as written. The estimate ``2 sqrt(m_eff / ke)`` uses the lightest contact point's
+effective mass ``1 / (J M^-1 J^T)`` (``J`` its vertical velocity's Jacobian) at the first tilt's landing pose.
+Float64. Writes ``benchmarks/results/contact3d.{json,md}`` and ``docs/img/ant_drop.png`` (the ant's height and
+energy at two steps; ``--figure-only``: the figure alone). """
 
 from __future__ import annotations
 
