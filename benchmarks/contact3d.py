@@ -10,7 +10,8 @@ ratio sqrt(2) from 40 ms down, the largest stable one reported. "Damped": ``kd =
 kf = 0``, the joints' damping as written. The estimate ``2 sqrt(m_eff / ke)`` uses the lightest contact point's
 effective mass ``1 / (J M^-1 J^T)`` (``J`` its vertical velocity's Jacobian) at the first tilt's landing pose.
 Float64. Writes ``benchmarks/results/contact3d.{json,md}`` and ``docs/img/ant_drop.png`` (the ant's height and
-energy at two steps; ``--figure-only``: the figure alone). """
+energy at two steps; ``--figure-only``: the figure alone).
+"""
 
 from __future__ import annotations
 
