@@ -58,6 +58,20 @@ def states(model, rng, B):
     return q, rng.uniform(-1, 1, (B, model.nv))
 
 
+def mujoco_c(model, q0, qd0, us):
+    """MuJoCo C's ``mujoco.rollout`` of the ``B`` states ``(q0, qd0)`` under the controls ``us`` (``(B, T, nu)``) with
+    2 threads: ``(seconds per env-step, the best of 3; the final qpos (B, nq))``."""
+    B, T = us.shape[:2]
+    datas = [mujoco.MjData(model) for _ in range(2)]
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    x0 = np.zeros((B, mujoco.mj_stateSize(model, spec)))
+    x0[:, 1: 1 + model.nq], x0[:, 1 + model.nq: 1 + model.nq + model.nv] = q0, qd0
+    state = np.empty((B, T, x0.shape[1]))
+    seconds = median_time(lambda: rollout.rollout(model, datas, x0, us, nstep=T, state=state, persistent_pool=True),
+                          repeats=3, best=True) / (B * T)
+    return seconds, state[:, -1, 1: 1 + model.nq]
+
+
 def measure(name, B, T):
     model, tree = free_flight(MODELS[name]())
     rng = np.random.default_rng(0)
@@ -82,14 +96,8 @@ def measure(name, B, T):
     compile_grad = time.perf_counter() - t
     ours = median_time(forward, *args, repeats=3, best=True) / (B * T)
     ours_grad = median_time(gradient, *args, repeats=3, best=True) / (B * T)
-    datas = [mujoco.MjData(model) for _ in range(2)]
-    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-    x0 = np.zeros((B, mujoco.mj_stateSize(model, spec)))
-    x0[:, 1: 1 + model.nq], x0[:, 1 + model.nq: 1 + model.nq + model.nv] = q0, qd0
-    state = np.empty((B, T, x0.shape[1]))
-    mj = median_time(lambda: rollout.rollout(model, datas, x0, us, nstep=T, state=state, persistent_pool=True),
-                     repeats=3, best=True) / (B * T)
-    err = float(np.max(np.abs(np.asarray(forward(*args)[0]) - state[:, -1, 1: 1 + model.nq])))
+    mj, qpos = mujoco_c(model, q0, qd0, us)
+    err = float(np.max(np.abs(np.asarray(forward(*args)[0]) - qpos)))
     return dict(nq=model.nq, nv=model.nv, batch=B, steps=T, lagrange_us=ours * 1e6, lagrange_grad_us=ours_grad * 1e6,
                 mujoco_c_us=mj * 1e6, speedup=mj / ours, compile_forward_dynamics_s=compile_fd,
                 compile_rollout_gradient_s=compile_grad, final_qpos_max_abs_diff=err)
@@ -118,13 +126,7 @@ def on_the_ground(B, T):
     args = tuple(jnp.asarray(x) for x in (q0, qd0, us))
     ours = median_time(forward, *args, repeats=3, best=True) / (B * T)
     finite = bool(np.all(np.isfinite(np.asarray(forward(*args)))))
-    datas = [mujoco.MjData(model) for _ in range(2)]
-    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-    x0 = np.zeros((B, mujoco.mj_stateSize(model, spec)))
-    x0[:, 1: 1 + model.nq], x0[:, 1 + model.nq: 1 + model.nq + model.nv] = q0, qd0
-    state = np.empty((B, T, x0.shape[1]))
-    mj = median_time(lambda: rollout.rollout(model, datas, x0, us, nstep=T, state=state, persistent_pool=True),
-                     repeats=3, best=True) / (B * T)
+    mj, _ = mujoco_c(model, q0, qd0, us)
     return dict(nv=model.nv, batch=B, steps=T, dt=DFLEX_ANT["dt"], lagrange_us=ours * 1e6, mujoco_c_us=mj * 1e6,
                 speedup=mj / ours, finite=finite)
 

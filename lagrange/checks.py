@@ -92,17 +92,20 @@ def check_pair(name: str, value, owner: str = "Link") -> tuple[float, float] | N
     return lo, hi
 
 
-def check_points(name: str, value) -> tuple[tuple[float, float, float], ...]:
-    """A sequence of ``(x, z, radius)`` triples as floats (finite, radius >= 0), else an error naming ``Link.name``."""
+def check_points(name: str, value, owner: str = "Link", coords: tuple[str, ...] = ("x", "z")) -> tuple[tuple, ...]:
+    """A sequence of points ``(*coords, radius)`` as tuples of floats (finite, radius >= 0), else an error naming
+    ``owner.name``: a chain's ``(x, z, radius)``, a body's ``(x, y, z, radius)``."""
+    fields = ", ".join(coords + ("radius",))
+    count = {3: "three", 4: "four"}[len(coords) + 1]
     try:
         points = tuple(tuple(float(c) for c in p) for p in value)
     except (TypeError, ValueError) as err:
-        raise TypeError(f"Link.{name} must be a sequence of points (x, z, radius), got {value!r}") from err
+        raise TypeError(f"{owner}.{name} must be a sequence of points ({fields}), got {value!r}") from err
     for k, p in enumerate(points):
-        if len(p) != 3:
-            raise ValueError(f"Link.{name}[{k}] must be a point (x, z, radius) of three numbers, got {p!r}")
-        if not all(math.isfinite(c) for c in p) or p[2] < 0:
-            raise ValueError(f"Link.{name}[{k}] must be finite with radius >= 0, got {p!r}")
+        if len(p) != len(coords) + 1:
+            raise ValueError(f"{owner}.{name}[{k}] must be a point ({fields}) of {count} numbers, got {p!r}")
+        if not all(math.isfinite(c) for c in p) or p[-1] < 0:
+            raise ValueError(f"{owner}.{name}[{k}] must be finite with radius >= 0, got {p!r}")
     return points
 
 

@@ -101,6 +101,12 @@ class PenaltyContact(eqx.Module):
             raise ValueError(f"PenaltyContact.ground must be a finite scalar height in m, got {ground!r}")
         self.ground = jnp.asarray(g, jax.dtypes.canonicalize_dtype(float))
 
+    def _normal(self, depth, vn):
+        """``(fn, bound)``: the normal force ``ke d + kd d max(-vn, 0)`` and friction's bound ``mu ke d``,
+        ``d = max(depth, 0)``."""
+        d = jnp.where(depth > 0, depth, 0.0)
+        return self.ke * d + self.kd * d * jnp.where(vn < 0, -vn, 0.0), self.mu * self.ke * d
+
     def forces(self, depth, vn, vt):
         """The contact forces at spots below the ground, by the law of the module docstring.
 
@@ -113,11 +119,8 @@ class PenaltyContact(eqx.Module):
             ``(fn, ft)``: the normal force along ``+z`` and the friction force along ``+x`` [N], of the broadcast
             shape; zero where ``depth <= 0``.
         """
-        d = jnp.where(depth > 0, depth, 0.0)
-        fn = self.ke * d + self.kd * d * jnp.where(vn < 0, -vn, 0.0)
-        bound = self.mu * self.ke * d
-        ft = -jnp.clip(self.kf * vt, -bound, bound)
-        return fn, ft
+        fn, bound = self._normal(depth, vn)
+        return fn, -jnp.clip(self.kf * vt, -bound, bound)
 
     def forces_3d(self, depth, vn, vt):
         """The contact forces on a level ground in 3-D: the normal force as :meth:`forces`, the friction
@@ -136,9 +139,7 @@ class PenaltyContact(eqx.Module):
         Returns:
             ``(fn, ft)``: the normal force ``(...)`` and the friction ``(..., 2)`` [N]; zero where ``depth <= 0``.
         """
-        d = jnp.where(depth > 0, depth, 0.0)
-        fn = self.ke * d + self.kd * d * jnp.where(vn < 0, -vn, 0.0)
-        bound = self.mu * self.ke * d
+        fn, bound = self._normal(depth, vn)
         v2 = jnp.sum(vt * vt, axis=-1)
         speed = jnp.sqrt(jnp.where(v2 > 0, v2, 1.0))
         viscous = (v2 == 0) | (self.kf * speed <= bound)  # a comparison: no gradient flows through it

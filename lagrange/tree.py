@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from lagrange.checks import check_array
+from lagrange.checks import check_array, check_points
 from lagrange.contact import PenaltyContact
 from lagrange.joints import AbstractJoint, Free, Hinge, Slide
 from lagrange.limits import PenaltyLimits
@@ -103,21 +103,8 @@ class Body(eqx.Module):
             raise ValueError(f"{who}.parent must be None, -1 (the world) or the index of a body listed before it, "
                              f"got {parent!r}")
         self.parent = None if parent is None else int(parent)
-        self.contacts = _contact_points(who, contacts)
+        self.contacts = check_points("contacts", contacts, owner=who, coords=("x", "y", "z"))
         self.name = name
-
-
-def _contact_points(who: str, value) -> tuple[tuple[float, float, float, float], ...]:
-    """``(x, y, z, radius)`` points as floats, finite with radius >= 0, else an error naming the field."""
-    try:
-        points = tuple(tuple(float(c) for c in p) for p in value)
-    except (TypeError, ValueError) as err:
-        raise TypeError(f"{who}.contacts must be a sequence of points (x, y, z, radius), got {value!r}") from err
-    for k, p in enumerate(points):
-        if len(p) != 4 or not all(np.isfinite(p)) or p[3] < 0:
-            raise ValueError(f"{who}.contacts[{k}] must be four finite numbers (x, y, z, radius) with radius >= 0, "
-                             f"got {p!r}")
-    return points
 
 
 def _traced(x) -> bool:

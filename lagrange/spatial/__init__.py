@@ -52,13 +52,10 @@ def _external(k: Kinematics):
     return None if k.tree.contact is None else contact_wrenches(k)
 
 
-def _applied(tree: Tree, q, qd):
-    """The joints' dampers and springs and the limits' penalty forces, ``(..., nv)`` or ``None``."""
-    out = None
-    for tau in (passive(tree, q, qd), limit_forces(tree, q, qd)):
-        if tau is not None:
-            out = tau if out is None else out + tau
-    return out
+def _total(*terms):
+    """The sum of the terms that are not ``None`` (``None`` when every one is)."""
+    present = [t for t in terms if t is not None]
+    return sum(present[1:], present[0]) if present else None
 
 
 def bias_forces(tree: Tree, q, qd):
@@ -66,7 +63,7 @@ def bias_forces(tree: Tree, q, qd):
     limits' and the contact's generalized forces."""
     q, qd = _broadcast(q, qd)
     k = Kinematics(tree, q, qd)
-    return _minus(rnea(k, external=_external(k)), _applied(tree, q, qd))
+    return _minus(rnea(k, external=_external(k)), _total(passive(tree, q, qd), limit_forces(tree, q, qd)))
 
 
 def gravity_forces(tree: Tree, q):
@@ -91,13 +88,8 @@ def forward_dynamics(tree: Tree, q, qd, u=None, implicit_damping_dt=None, *, piv
     ``implicit_damping_dt = h``)."""
     q, qd, u = _broadcast(q, qd, None if u is None or tree.m == 0 else u)
     k = Kinematics(tree, q, qd)
-    contact = _external(k)
-    if contact is not None:
-        external = contact if external is None else external + contact
-    rhs = -rnea(k, external=external)
-    for tau in (actuation(tree, u), _applied(tree, q, qd)):
-        if tau is not None:
-            rhs = rhs + tau
+    rhs = _total(-rnea(k, external=_total(external, _external(k))), actuation(tree, u), passive(tree, q, qd),
+                 limit_forces(tree, q, qd))
     M = crba(k)
     damping = per_dof(tree, "damping")
     if implicit_damping_dt is not None and damping is not None:
@@ -122,11 +114,8 @@ def energy(tree: Tree, q, qd):
     g = jnp.asarray(tree.gravity, q.dtype)
     # gravity's potential: -m g . x_com over the links (their first moments about the reference points, plus m o)
     pot = -jnp.sum((k.h + k.m[:, None] * k.o) * g, axis=(-2, -1))
-    for extra in (spring_potential(tree, q), limit_energy(tree, q),
-                  None if tree.contact is None else contact_energy(k)):
-        if extra is not None:
-            pot = pot + extra
-    return kin, pot
+    return kin, _total(pot, spring_potential(tree, q), limit_energy(tree, q),
+                       None if tree.contact is None else contact_energy(k))
 
 
 def _body_frames(tree: Tree, q):

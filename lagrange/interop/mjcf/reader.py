@@ -17,7 +17,8 @@ import numpy as np
 from lagrange.chain import WORLD, Chain, Link
 from lagrange.contact import PenaltyContact
 from lagrange.limits import PenaltyLimits
-from lagrange.interop.mjcf.refusals import contact_pairs, element_name, ground_plane, is_limited, refuse
+from lagrange.interop.mjcf.refusals import (element_name, geom_points, ground_geoms, ground_plane, is_limited,
+                                            refuse)
 from lagrange.interop.mjcf.runtime import compile_model, import_mujoco
 from lagrange.interop.mjcf.tree_reader import tree_from_model
 from lagrange.tree import Tree
@@ -298,7 +299,6 @@ def _ground_contacts(mujoco, model, data, last_joint, origin, Z, to2):
     """The contact points of the geoms that can touch the ground plane, per link (the last joint of each geom's
     rigid group): ``{link: [(point in the plane at qpos = 0, radius), ...]}``; and the plane's height."""
     nm = lambda kind, i: element_name(mujoco, model, kind, i)  # noqa: E731
-    kinds = mujoco.mjtGeom
     plane = ground_plane(mujoco, model)
     normal = np.array(data.geom_xmat[plane]).reshape(3, 3)[:, 2]
     if abs(normal @ Z) < 1 - 1e-9:
@@ -307,20 +307,8 @@ def _ground_contacts(mujoco, model, data, last_joint, origin, Z, to2):
     height = float((np.array(data.geom_xpos[plane]) - origin) @ Z)
     weld = model.body_weldid
     touching: dict[int, list] = {}
-    for g in sorted({g for pair in contact_pairs(mujoco, model) if plane in pair for g in pair if g != plane}):
-        body = int(weld[model.geom_bodyid[g]])
-        if body == 0:
-            continue  # another static geom of the world
-        centre = np.array(data.geom_xpos[g])
-        if model.geom_type[g] == kinds.mjGEOM_CAPSULE:
-            axis = np.array(data.geom_xmat[g]).reshape(3, 3)[:, 2] * model.geom_size[g, 1]
-            ends = [centre - axis, centre + axis]
-        elif model.geom_type[g] == kinds.mjGEOM_SPHERE:
-            ends = [centre]
-        else:
-            raise NotImplementedError(
-                f"from_mjcf: {nm('geom', g)} is a {kinds(model.geom_type[g]).name[7:].lower()} that can touch the "
-                "ground; PenaltyContact takes capsules and spheres: replace it, or set its contype and conaffinity "
-                "to 0")
-        touching.setdefault(last_joint[body], []).extend((to2(e - origin), float(model.geom_size[g, 0])) for e in ends)
+    for g in ground_geoms(mujoco, model, plane):
+        centre, R = np.array(data.geom_xpos[g]), np.array(data.geom_xmat[g]).reshape(3, 3)
+        touching.setdefault(last_joint[int(weld[model.geom_bodyid[g]])], []).extend(
+            (to2(e - origin), float(r)) for e, r in geom_points(mujoco, model, g, centre, R, boxes=False))
     return touching, height

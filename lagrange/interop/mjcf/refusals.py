@@ -155,6 +155,31 @@ def ground_plane(mujoco, model) -> int:
     return planes[0]
 
 
+def ground_geoms(mujoco, model, plane: int) -> list[int]:
+    """The geoms that MuJoCo's ``contype``/``conaffinity`` rule lets touch the ground ``plane``, in order, leaving
+    out those of the world body and of bodies welded to it (they cannot move)."""
+    touching = {g for pair in contact_pairs(mujoco, model) if plane in pair for g in pair if g != plane}
+    return [g for g in sorted(touching) if model.body_weldid[model.geom_bodyid[g]] != 0]
+
+
+def geom_points(mujoco, model, g: int, centre, R, *, boxes: bool) -> list[tuple[np.ndarray, float]]:
+    """Geom ``g``'s contact points ``[(point, radius), ...]`` from its centre and rotation in any one frame: a
+    capsule's two end points and a sphere's centre with their radius, with ``boxes`` a box's eight corners (radius 0);
+    any other type is refused, naming the geom and the shapes taken."""
+    kinds, size = mujoco.mjtGeom, np.asarray(model.geom_size[g], float)
+    if model.geom_type[g] == kinds.mjGEOM_CAPSULE:
+        return [(centre - R[:, 2] * size[1], size[0]), (centre + R[:, 2] * size[1], size[0])]
+    if model.geom_type[g] == kinds.mjGEOM_SPHERE:
+        return [(centre, size[0])]
+    if boxes and model.geom_type[g] == kinds.mjGEOM_BOX:
+        signs = [(sx, sy, sz) for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
+        return [(centre + R @ (np.array(sign) * size), 0.0) for sign in signs]
+    taken = "capsules, spheres and boxes" if boxes else "capsules and spheres"
+    raise NotImplementedError(
+        f"from_mjcf: {element_name(mujoco, model, 'geom', g)} is a {kinds(model.geom_type[g]).name[7:].lower()} that "
+        f"can touch the ground; PenaltyContact takes {taken}: replace it, or set its contype and conaffinity to 0")
+
+
 def contact_pairs(mujoco, model) -> list[tuple[int, int]]:
     """Every pair of geoms that MuJoCo's collision driver would test.
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from lagrange._spatial import quat_to_matrix
 from lagrange.contact import PenaltyContact
-from lagrange.interop.mjcf.refusals import contact_pairs, element_name, ground_plane, is_limited
+from lagrange.interop.mjcf.refusals import element_name, geom_points, ground_geoms, ground_plane, is_limited
 from lagrange.joints import Ball, Free, Hinge, Slide
 from lagrange.limits import PenaltyLimits
 from lagrange.tree import Body, Motor, Tree
@@ -54,33 +54,16 @@ def _contacts(mujoco, model):
     """``({body: [(x, y, z, radius), ...]}, height)``: the contact points, in their bodies' frames, of the geoms that
     MuJoCo's ``contype``/``conaffinity`` rule lets touch the ground (the world's one plane geom, level), and the
     ground's height: both end points of a capsule, a sphere's centre, a box's eight corners (radius 0)."""
-    nm = lambda kind, i: element_name(mujoco, model, kind, i)  # noqa: E731
-    kinds = mujoco.mjtGeom
     plane = ground_plane(mujoco, model)
     normal = quat_to_matrix(np.asarray(model.geom_quat[plane], float), np)[:, 2]
     if normal[2] < 1 - 1e-9:
-        raise NotImplementedError(f"from_mjcf: the ground {nm('geom', plane)} is not level (its normal "
-                                  f"{normal.round(6).tolist()} is not +z)")
+        raise NotImplementedError(f"from_mjcf: the ground {element_name(mujoco, model, 'geom', plane)} is not level "
+                                  f"(its normal {normal.round(6).tolist()} is not +z)")
     points: dict[int, list] = {}
-    for g in sorted({g for pair in contact_pairs(mujoco, model) if plane in pair for g in pair if g != plane}):
-        body = int(model.geom_bodyid[g])
-        if body == 0:
-            continue  # another static geom of the world
-        R = quat_to_matrix(np.asarray(model.geom_quat[g], float), np)
-        centre, size = np.asarray(model.geom_pos[g], float), np.asarray(model.geom_size[g], float)
-        if model.geom_type[g] == kinds.mjGEOM_CAPSULE:
-            new = [(centre - R[:, 2] * size[1], size[0]), (centre + R[:, 2] * size[1], size[0])]
-        elif model.geom_type[g] == kinds.mjGEOM_SPHERE:
-            new = [(centre, size[0])]
-        elif model.geom_type[g] == kinds.mjGEOM_BOX:
-            new = [(centre + R @ (np.array(signs) * size), 0.0)
-                   for signs in ((sx, sy, sz) for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1))]
-        else:
-            raise NotImplementedError(
-                f"from_mjcf: {nm('geom', g)} is a {kinds(model.geom_type[g]).name[7:].lower()} that can touch the "
-                "ground; PenaltyContact takes capsules, spheres and boxes: replace it, or set its contype and "
-                "conaffinity to 0")
-        points.setdefault(body, []).extend((*_clean(c).tolist(), float(r)) for c, r in new)
+    for g in ground_geoms(mujoco, model, plane):
+        centre, R = np.asarray(model.geom_pos[g], float), quat_to_matrix(np.asarray(model.geom_quat[g], float), np)
+        points.setdefault(int(model.geom_bodyid[g]), []).extend(
+            (*_clean(c).tolist(), float(r)) for c, r in geom_points(mujoco, model, g, centre, R, boxes=True))
     return points, float(model.geom_pos[plane][2])
 
 
