@@ -1,6 +1,8 @@
 """lagrange: exact, fast, differentiable dynamics of kinematic trees in pure JAX: planar chains and trees (with ground
 contact and joint limits by penalty forces) and spatial trees of hinges, slides, balls and free joints."""
 
+from lagrange import _xla_flags  # noqa: F401  (first: XLA reads its flags when JAX starts a backend)
+
 from lagrange.chain import Chain, Link
 from lagrange.joints import Ball, Free, Hinge, Slide
 from lagrange.tree import Body, Motor, Tree

@@ -9,6 +9,7 @@ axes, so that XLA fuses them with their neighbours instead of emitting a small m
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 from jax import lax
 import numpy as np
@@ -17,7 +18,7 @@ import numpy as np
 
 def eye3(dtype):
     """The 3x3 identity in ``dtype`` (a function, not a module constant: importing lagrange must not start JAX)."""
-    return jnp.eye(3, dtype=dtype)
+    return jnp.eye(3, dtype=jax.dtypes.canonicalize_dtype(dtype))
 
 
 def matvec(A, x):

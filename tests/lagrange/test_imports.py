@@ -217,3 +217,26 @@ def test_importing_the_adapters_changes_no_other_module():
                 changed[name] = (sorted(new), sorted(rebound))
         assert not changed, changed
     """)
+
+
+def test_importing_lagrange_turns_off_the_ynn_fusions_and_keeps_a_users_setting():
+    from lagrange import _xla_flags
+
+    env = {"XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
+    assert _xla_flags.apply(env)
+    assert env["XLA_FLAGS"] == "--xla_force_host_platform_device_count=2 --xla_cpu_experimental_ynn_fusion_type="
+    mine = {"XLA_FLAGS": "--xla_cpu_experimental_ynn_fusion_type=-reduce"}
+    assert not _xla_flags.apply(mine) and mine["XLA_FLAGS"] == "--xla_cpu_experimental_ynn_fusion_type=-reduce"
+    # in a fresh interpreter: set by the import, and the compiled program has no ynn fusion
+    code = textwrap.dedent("""
+        import os
+        import jax, jax.numpy as jnp
+        import lagrange
+        print(os.environ["XLA_FLAGS"])
+        f = jax.jit(lambda x: jnp.sum(x * x[..., None, :], axis=-1))
+        print("__ynn_fusion" in f.lower(jnp.ones((64, 3), jnp.float32)).compile().as_text())
+    """)
+    env = {k: v for k, v in __import__("os").environ.items() if k != "XLA_FLAGS"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, env=env, check=True)
+    flags, ynn = out.stdout.split("\n")[:2]
+    assert "--xla_cpu_experimental_ynn_fusion_type=" in flags and ynn == "False"
