@@ -169,7 +169,10 @@ def contact_point_positions(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Fl
     """The contact points (``Link(contacts=...)``, their centres, not lowered by the radius) [m] as (x, z) rows,
     shape ``(*batch, k, 2)``, at joint coordinates ``q`` [rad or m] of shape ``(*batch, n)``; ``k = 0`` for a chain
     without contact points. Point ``k`` belongs to link ``chain.contact_links[k]``, radius
-    ``chain.contact_points[k, 2]``."""
+    ``chain.contact_points[k, 2]``. For a spatial :class:`~lagrange.tree.Tree`: the bodies' points in the world,
+    ``(*batch, k, 3)``, bodies in order."""
+    if isinstance(chain, Tree):
+        return spatial.contact_point_positions(chain, jnp.asarray(q))
     points = [] if chain.contact_points is None else [(i, p[0], p[1]) for i, p in zip(chain.contact_links,
                                                                                        chain.contact_points)]
     f = frames(chain, q, points=points)

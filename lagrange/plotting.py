@@ -17,6 +17,7 @@ import numpy as np
 
 from lagrange.kinematics import contact_point_positions, positions
 from lagrange.tasks import AbstractPoleTask, AbstractTask, TaskState, balanced
+from lagrange.tree import Tree
 
 __all__ = ["episode_figure", "episode_animation", "gait_figure", "gait_animation"]
 
@@ -99,12 +100,13 @@ def episode_animation(task: AbstractPoleTask, q, path: str, *, every: int | None
 
 
 def gait_figure(task: AbstractTask, q, actions, path: str, *, rewards=None, title: str | None = None) -> None:
-    """Draw a locomotion episode to ``path`` (PNG): the root's x position and height, the torso's pitch, the rewards
-    when given, and the actions, against time.
+    """Draw a locomotion episode to ``path`` (PNG): the task's ``track`` of the body (the root's x and height, the
+    torso's pitch or tilt), the rewards when given, and the actions, against time.
 
     Args:
-        task: a locomotion task (``q[0:3]`` the root's x, height and pitch).
-        q: the visited coordinates, shape ``(T + 1, n)``.
+        task: a locomotion task (one with ``track(q)``: :class:`lagrange.tasks.AbstractLocomotion`,
+            :class:`lagrange.tasks.AbstractLocomotion3D`).
+        q: the visited coordinates, shape ``(T + 1, nq)``.
         actions: the actions in ``[-1, 1]``, shape ``(T, m)``.
         path: the PNG file.
         rewards: the rewards, shape ``(T,)``, or None.
@@ -113,15 +115,16 @@ def gait_figure(task: AbstractTask, q, actions, path: str, *, rewards=None, titl
     from matplotlib.figure import Figure
 
     q, actions = np.asarray(q), np.asarray(actions)
+    (xl, x), (hl, h), (al_, angle) = ((k, np.asarray(v)) for k, v in task.track(q).items())
     t = np.arange(q.shape[0]) * task.dt
     panels = 4 if rewards is not None else 3
     fig = Figure(figsize=(7, 1.8 * panels))
     axes = fig.subplots(panels, 1, sharex=True)
-    axes[0].plot(t, q[:, 0], label="x [m]")
-    axes[0].plot(t, q[:, 1], label="height above start [m]")
+    axes[0].plot(t, x, label=xl)
+    axes[0].plot(t, h, label=hl)
     axes[0].legend(fontsize=7, loc="upper left")
-    axes[1].plot(t, q[:, 2], color="tab:green")
-    axes[1].set_ylabel("pitch [rad]")
+    axes[1].plot(t, angle, color="tab:green")
+    axes[1].set_ylabel(al_)
     if rewards is not None:
         axes[2].plot(t[1:], np.asarray(rewards), color="tab:purple", lw=0.8)
         axes[2].set_ylabel("reward")
@@ -130,7 +133,7 @@ def gait_figure(task: AbstractTask, q, actions, path: str, *, rewards=None, titl
     axes[-1].set_xlabel("time [s]")
     for ax in axes:
         ax.grid(alpha=0.3)
-    axes[0].set_title(title or f"{task.name}: {q[-1, 0] - q[0, 0]:.1f} m in {t[-1]:.1f} s")
+    axes[0].set_title(title or f"{task.name}: {x[-1] - x[0]:.1f} m in {t[-1]:.1f} s")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 
@@ -150,19 +153,31 @@ def gait_animation(task: AbstractTask, q, path: str, *, every: int | None = None
     """
     from matplotlib import animation
     from matplotlib.figure import Figure
+    from matplotlib.patches import Circle
 
     chain = task.chain
-    if chain.contact_points is None:
-        raise ValueError("gait_animation draws a chain's capsules from its contact points; this chain has none")
     every = every or max(1, int(round(0.05 / task.dt)))
     q = np.asarray(q)
     q = q[: None if seconds is None else int(round(seconds / task.dt)) + 1: every]
     pts = np.asarray(jax.vmap(lambda x: contact_point_positions(chain, x))(jnp.asarray(q)))
-    radius = np.asarray(chain.contact_points)[:, 2]
-    links = np.asarray(chain.contact_links)
-    capsules = [(k, k + 1) for k in range(0, len(links) - 1, 2) if links[k] == links[k + 1]]
+    if isinstance(chain, Tree):  # the side view: x and z; a body's odd first point is a sphere's centre
+        pts = pts[..., [0, 2]]
+        radius = np.array([c[3] for b in chain.bodies for c in b.contacts])
+        counts = [len(b.contacts) for b in chain.bodies]
+        firsts = np.cumsum([0] + counts[:-1])
+        capsules = [(f + k, f + k + 1) for f, c in zip(firsts, counts) for k in range(c % 2, c - 1, 2)]
+        spheres = [f for f, c in zip(firsts, counts) if c % 2]
+    else:
+        if chain.contact_points is None:
+            raise ValueError("gait_animation draws a chain's capsules from its contact points; this chain has none")
+        radius = np.asarray(chain.contact_points)[:, 2]
+        links = np.asarray(chain.contact_links)
+        capsules = [(k, k + 1) for k in range(0, len(links) - 1, 2) if links[k] == links[k + 1]]
+        spheres = []
+    if pts.shape[-2] == 0:
+        raise ValueError("gait_animation draws the robot from its contact points; this one has none")
     ground = float(chain.contact.ground)
-    top = float(np.max(pts[..., 1])) + 0.2
+    top = float(np.max(pts[..., 1] + radius)) + 0.2
     fig = Figure(figsize=(5, 5 * (top - ground + 0.3) / width), dpi=80)
     ax = fig.subplots()
     ax.set_aspect("equal")
@@ -171,6 +186,7 @@ def gait_animation(task: AbstractTask, q, path: str, *, every: int | None = None
     scale = 72 * 5 / width * 0.8  # points per metre at this figure width (the axes span ~80 % of it)
     lines = [ax.plot([], [], lw=2 * radius[a] * scale, solid_capstyle="round", color="tab:blue")[0]
              for a, b in capsules]
+    discs = [ax.add_patch(Circle((0, 0), radius[k], color="tab:blue")) for k in spheres]
     for x in np.arange(np.floor(q[:, 0].min()) - width, q[:, 0].max() + width, 1.0):  # metre marks on the ground
         ax.axvline(x, color="0.7", lw=0.5)
     text = ax.text(0.02, 0.95, "", transform=ax.transAxes, fontsize=8, va="top")
@@ -180,8 +196,10 @@ def gait_animation(task: AbstractTask, q, path: str, *, every: int | None = None
         ax.set_xlim(centre - width / 2, centre + width / 2)
         for line, (a, b) in zip(lines, capsules):
             line.set_data(pts[i, [a, b], 0], pts[i, [a, b], 1])
+        for disc, k in zip(discs, spheres):
+            disc.center = (pts[i, k, 0], pts[i, k, 1])
         text.set_text(f"t = {i * every * task.dt:4.2f} s, x = {centre:5.2f} m")
-        return lines + [text]
+        return lines + discs + [text]
 
     anim = animation.FuncAnimation(fig, frame, frames=pts.shape[0], blit=False)
     anim.save(path, writer=animation.PillowWriter(fps=int(round(1 / (every * task.dt)))))

@@ -259,6 +259,11 @@ class Tree(eqx.Module):
         return self.nv
 
     @property
+    def mass(self) -> Float[Array, " bodies"]:
+        """Every body's mass [kg], in order (its dtype is the tree's)."""
+        return jnp.stack([jnp.asarray(b.mass) for b in self.bodies])
+
+    @property
     def m(self) -> int:
         """Number of controls."""
         return len(self.motors)

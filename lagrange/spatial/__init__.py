@@ -155,6 +155,15 @@ def com_positions(tree: Tree, q):
     return p + al.matvec(R, com)
 
 
+def contact_point_positions(tree: Tree, q):
+    """Every body's contact points (their centres, not lowered by the radius) in the world [m], bodies in order and
+    each body's points in order, shape ``(*batch, k, 3)``."""
+    R, p = _body_frames(tree, q)
+    out = [p[..., b, :] + al.matvec(R[..., b, :, :], jnp.asarray(c[:3], p.dtype))
+           for b, body in enumerate(tree.bodies) for c in body.contacts]
+    return jnp.stack(out, axis=-2) if out else jnp.zeros(p.shape[:-2] + (0, 3), p.dtype)
+
+
 def dexpinv(tree: Tree, theta, v):
     """The velocities ``v`` (``(..., nv)``) as the rate of the tangent increment ``theta`` (``(..., nv)``) from a base
     point: a ball's and a free joint's angular part ``w`` becomes ``J_r(theta)^-1 w = w + theta x w / 2 +

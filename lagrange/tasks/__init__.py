@@ -9,7 +9,8 @@ A task is an immutable :class:`equinox.Module` with pure methods ``reset(key)``,
   table); :data:`PAPER_TASKS` names the paper's three, :data:`BODY_SETS` their constructors.
 - :class:`DiffRLCartpole`, the SHAC authors' environment, NVlabs/DiffRL (:mod:`lagrange.tasks.diffrl_cartpole`).
 - :class:`Hopper` and :class:`Cheetah`, the SHAC paper's planar locomotion as DFlex runs it (``.diffrl()``;
-  :mod:`lagrange.tasks.locomotion`).
+  :mod:`lagrange.tasks.locomotion`), and :class:`Ant` and :class:`Humanoid`, its 3-D ones
+  (:mod:`lagrange.tasks.locomotion3d`).
 - :func:`balanced`, :func:`upright_error` and :func:`leaves_upright` judge an episode
   (:mod:`lagrange.tasks.poles`, with :class:`AbstractPoleTask`).
 
@@ -20,6 +21,7 @@ from lagrange.tasks.base import AbstractTask, TaskState, control_step, wrap
 from lagrange.tasks.poles import AbstractPoleTask, balanced, leaves_upright, upright_error
 from lagrange.tasks.diffrl_cartpole import POLE_INERTIA, DiffRLCartpole
 from lagrange.tasks.locomotion import AbstractLocomotion, Cheetah, Hopper
+from lagrange.tasks.locomotion3d import AbstractLocomotion3D, Ant, Humanoid
 from lagrange.tasks.swingup import (
     BODY_SETS,
     PAPER_TASKS,
@@ -47,6 +49,9 @@ __all__ = [
     "AbstractLocomotion",
     "Hopper",
     "Cheetah",
+    "AbstractLocomotion3D",
+    "Ant",
+    "Humanoid",
     "POLE_INERTIA",
     "balanced",
     "leaves_upright",

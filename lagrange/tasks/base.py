@@ -24,6 +24,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 from lagrange.chain import Chain
 from lagrange.integrate import step as _step
 from lagrange.solvers import SemiImplicitEuler, SymplecticEuler, check_solver
+from lagrange.tree import Tree
 
 __all__ = ["TaskState", "AbstractTask", "TaskSolver", "control_step", "wrap",
            "check_schedule", "check_joints", "check_number", "check_state", "check_chain"]
@@ -42,24 +43,29 @@ def wrap(angle: Float[ArrayLike, " *shape"]) -> Float[Array, " *shape"]:
 
 
 class TaskState(NamedTuple):
-    """A task's state: the chain's generalized coordinates and velocities.
+    """A task's state: the chain's generalized coordinates and velocities, and for a task that observes it, the
+    action last applied.
 
     Attributes:
-        q (Float[Array, "n"]): coordinates [rad; m for a cart].
-        qd (Float[Array, "n"]): velocities [rad/s; m/s for a cart].
+        q (Float[Array, "nq"]): coordinates [rad; m for a cart] (``nq = n`` for a chain).
+        qd (Float[Array, "nv"]): velocities [rad/s; m/s for a cart].
+        action (Float[Array, "m"] | None): the clipped action of the step that reached the state (zeros at a reset),
+            for tasks that observe it (DFlex's Ant and Humanoid); None for the others. :func:`control_step` keeps it
+            up to date when it is not None.
     """
 
-    q: Float[Array, " n"]
-    qd: Float[Array, " n"]
+    q: Float[Array, " nq"]
+    qd: Float[Array, " nv"]
+    action: Float[Array, " m"] | None = None
 
 
 class AbstractTask(eqx.Module):
-    """A control task on a planar chain or tree; every method is pure. Subclasses provide the fields and class
-    variables below, and ``reset``, ``observe``, ``reward`` and ``observation_size``; the dynamics (``step``) are the
-    same for every task.
+    """A control task on a planar chain or tree or a spatial tree; every method is pure. Subclasses provide the fields
+    and class variables below, and ``reset``, ``observe``, ``reward`` and ``observation_size``; the dynamics
+    (``step``) are the same for every task.
 
     Attributes:
-        chain (Chain): the chain.
+        chain (Chain | Tree): the robot.
         dt (float): the control interval [s].
         horizon (int): control steps per episode.
         substeps (int): steps of ``solver`` per control interval.
@@ -67,7 +73,7 @@ class AbstractTask(eqx.Module):
         name (ClassVar[str]): a display name for titles and results, never switched on.
     """
 
-    chain: AbstractVar[Chain]
+    chain: AbstractVar[Chain | Tree]
     dt: AbstractVar[float]
     horizon: AbstractVar[int]
     substeps: AbstractVar[int]
@@ -162,7 +168,7 @@ def control_step(task: AbstractTask, state: TaskState, action: Float[ArrayLike, 
 
     Args:
         task: the task.
-        state: one state, ``q`` and ``qd`` of shape ``(n,)`` each.
+        state: one state, ``q`` of shape ``(nq,)`` and ``qd`` of shape ``(nv,)``.
         action: one action, shape ``(m,)`` (``m = task.action_size``), dimensionless; integers are converted.
 
     Returns:
@@ -182,7 +188,7 @@ def control_step(task: AbstractTask, state: TaskState, action: Float[ArrayLike, 
         raise TypeError(f"{cls}.step: action must hold real numbers in [-1, 1], got dtype {kind}")
     a = jnp.clip(action, -1.0, 1.0)
     q, qd = _step(task.chain, state.q, state.qd, a, task.dt, task.solver, task.substeps)
-    return TaskState(q, qd)
+    return TaskState(q, qd, None if state.action is None else a.astype(state.action.dtype))
 
 
 def check_state(task: AbstractTask, state: TaskState, method: str | None = None) -> None:
@@ -197,38 +203,47 @@ def check_state(task: AbstractTask, state: TaskState, method: str | None = None)
         TypeError: for something else than a ``TaskState``.
         ValueError: for ``q`` or ``qd`` of another shape than ``(n,)``.
     """
-    where, n = type(task).__name__ + (f".{method}" if method else ""), task.chain.n
+    where, nv = type(task).__name__ + (f".{method}" if method else ""), task.chain.n
+    nq = task.chain.nq if isinstance(task.chain, Tree) else nv
     if not isinstance(state, TaskState):
         raise TypeError(f"{where}: state must be a lagrange.tasks.TaskState(q, qd), got {type(state).__name__}")
-    if jnp.shape(state.q) != (n,) or jnp.shape(state.qd) != (n,):
-        raise ValueError(f"{where}: state.q and state.qd must have shape (n,) = ({n},), got {jnp.shape(state.q)} and "
+    if jnp.shape(state.q) != (nq,) or jnp.shape(state.qd) != (nv,):
+        want = f"shape (n,) = ({nv},)" if nq == nv else f"shapes (nq,) = ({nq},) and (nv,) = ({nv},)"
+        raise ValueError(f"{where}: state.q and state.qd must have {want}, got {jnp.shape(state.q)} and "
                          f"{jnp.shape(state.qd)}; jax.vmap over a batch of states")
+    if state.action is not None and jnp.shape(state.action) != (task.chain.m,):
+        raise ValueError(f"{where}: state.action must have shape (m,) = ({task.chain.m},) or be None, got "
+                         f"{jnp.shape(state.action)}")
 
 
-def check_chain(task: AbstractTask) -> None:
-    """Check that a task's ``chain`` is a :class:`lagrange.Chain`.
+def check_chain(task: AbstractTask, kind: type = Chain) -> None:
+    """Check that a task's ``chain`` is a :class:`lagrange.Chain` (or ``kind``: :class:`lagrange.Tree` for the 3-D
+    tasks).
 
     Args:
         task: the task.
+        kind: the class the chain must be.
 
     Raises:
         TypeError: naming the field and what it got.
     """
-    if not isinstance(task.chain, Chain):
-        raise TypeError(f"{type(task).__name__}.chain must be a lagrange.Chain, got {type(task.chain).__name__}")
+    if not isinstance(task.chain, kind):
+        raise TypeError(f"{type(task).__name__}.chain must be a lagrange.{kind.__name__}, got "
+                        f"{type(task.chain).__name__}")
 
 
-def check_schedule(task: AbstractTask) -> None:
-    """Check a task's ``dt``, ``horizon`` and ``substeps`` (for a task's ``__check_init__``).
+def check_schedule(task: AbstractTask, kind: type = Chain) -> None:
+    """Check a task's ``chain``, ``dt``, ``horizon`` and ``substeps`` (for a task's ``__check_init__``).
 
     Args:
         task: the task.
+        kind: the class its chain must be (:func:`check_chain`).
 
     Raises:
         ValueError: naming the field that is out of range (``horizon``, ``substeps``: integers >= 1; ``dt`` > 0).
     """
     cls = type(task).__name__
-    check_chain(task)
+    check_chain(task, kind)
     for field in ("horizon", "substeps"):
         v = getattr(task, field)
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:

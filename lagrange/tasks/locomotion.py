@@ -206,6 +206,15 @@ class AbstractLocomotion(AbstractTask):
         check_state(self, state)
         return jnp.concatenate([state.q[1:], state.qd])
 
+    def track(self, q: Float[ArrayLike, "*batch n"]) -> dict[str, Float[Array, " *batch"]]:
+        """What a gait plot shows: the root's x [m], its height above the start [m] and the torso's pitch [rad].
+
+        Args:
+            q: coordinates, shape ``(*batch, n)``.
+        """
+        q = jnp.asarray(q)
+        return {"x [m]": q[..., 0], "height above start [m]": q[..., 1], "pitch [rad]": q[..., 2]}
+
     def _action_cost(self, action) -> Float[Array, ""]:
         a = jnp.clip(action, -1.0, 1.0)
         return self.action_cost * jnp.sum(a * a)

@@ -120,6 +120,29 @@ class SHACConfig(AlgorithmConfig):
         return dataclasses.replace(cls(num_envs=64, iterations=2000, actor_lr=2e-3, critic_lr=2e-3), **overrides)
 
     @classmethod
+    def ant(cls, **overrides) -> "SHACConfig":
+        """The authors' ant config (``examples/cfg/shac/ant.yaml``): 64 envs, 2000 epochs (4.1M env steps), actor and
+        critic lr 2e-3, target alpha 0.2; the rest as the defaults (the cheetah's settings). The actor is
+        ``policies.Actor.for_task(task, units=(128, 64, 32))``.
+
+        Args:
+            overrides: fields to replace.
+        """
+        return dataclasses.replace(cls(num_envs=64, iterations=2000, actor_lr=2e-3, critic_lr=2e-3), **overrides)
+
+    @classmethod
+    def humanoid(cls, **overrides) -> "SHACConfig":
+        """The authors' humanoid config (``examples/cfg/shac/humanoid.yaml``): 64 envs, 2000 epochs (4.1M env
+        steps), actor lr 2e-3, critic lr 5e-4, target alpha 0.995, critic (128, 128); the rest as the defaults. The
+        actor is ``policies.Actor.for_task(task, units=(256, 128))``.
+
+        Args:
+            overrides: fields to replace.
+        """
+        return dataclasses.replace(cls(num_envs=64, iterations=2000, actor_lr=2e-3, critic_lr=5e-4,
+                                       target_alpha=0.995, critic_units=(128, 128)), **overrides)
+
+    @classmethod
     def bptt(cls, task: str, **overrides) -> "SHACConfig":
         """The SHAC paper's BPTT baseline as its authors ran it (``examples/cfg/bptt/<task>.yaml``): no critic,
         windows of 128 steps in 32 environments that continue across epochs, 2000 epochs (8.2M env steps), actor lr

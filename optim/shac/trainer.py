@@ -179,7 +179,7 @@ def make_trainer(config, task: AbstractTask, actor: Actor) -> Trainer:
         }
         # An environment whose state went non-finite restarts (counted), instead of poisoning later windows.
         env_state, progress, ep_return = win.env_state, win.progress, win.ep_return
-        broken = ~jnp.all(jnp.isfinite(env_state.q) & jnp.isfinite(env_state.qd), axis=-1)
+        broken = ~(jnp.all(jnp.isfinite(env_state.q), axis=-1) & jnp.all(jnp.isfinite(env_state.qd), axis=-1))
         fresh = jax.vmap(task.reset)(jax.random.split(jax.random.fold_in(key, 0xBAD), N))
         env_state = jax.tree_util.tree_map(lambda f, o: jnp.where(broken[:, None], f, o), fresh, env_state)
         progress = jnp.where(broken, 0, progress)

@@ -1,0 +1,444 @@
+"""The SHAC paper's 3-D locomotion: DFlex's Ant and Humanoid (NVlabs/DiffRL) on exact spatial trees with penalty
+contact.
+
+Followed: NVlabs/DiffRL at commit 6b8d695567a30e774ed373572bb23c9db0ba7622 (the SHAC release): ``envs/ant.py``,
+``envs/humanoid.py``, ``utils/load_utils.py`` (``parse_mjcf``), ``dflex/dflex/sim.py``, ``dflex/dflex/model.py``; the
+assets ``envs/assets/ant.xml`` (read in the HaoxiangYou/DiffRL fork, which carries it unchanged) and
+``humanoid.xml`` (the copy at ``dflex/dflex/envs/assets/humanoid.xml``, commit fb0e1e1); the SHAC configs
+``examples/cfg/shac/ant.yaml`` and ``humanoid.yaml`` (commit 24a4996). The bodies are built here from the assets'
+spheres and capsules with DFlex's mass and inertia formulas; nothing of their code is copied.
+
+:meth:`Ant.diffrl` and :meth:`Humanoid.diffrl` reproduce DFlex's physics as its code runs, quirks included:
+
+=====================  =================================================================================================
+bodies                 DFlex's loader: every shape at density 1000 kg/m^3 (the MJCF's ``density``, ``<default>``
+                       classes, body ``quat`` s and gears ignored); a sphere of radius r weighs ``1000 (4/3) pi r^3``
+                       with moment ``0.4 m r^2``; a capsule of radius r and length l (between its end points) weighs
+                       ``1000 (4/3 pi r^3 + pi r^2 l)`` with the transverse moment of
+                       :func:`lagrange.tasks.locomotion.capsule_mass_and_inertia` and the axial ``(m_c / 2 + 0.4 m_s)
+                       r^2``; a body's shapes summed about their common centre of mass; DFlex's one link per joint is
+                       a body with several hinges, each about its own anchor (the same motion)
+root                   a free joint (MuJoCo's: ``q[0:3]`` the torso's position, ``q[3:7]`` its quaternion ``(w, x, y,
+                       z)``, ``qd[0:3]`` its origin's velocity in the world, ``qd[3:6]`` its angular velocity in its
+                       own frame); no armature, damping or limit on it (DFlex sets the free joint's armature to 0)
+hinges                 the ant's: armature 0.05, damping 1; the humanoid's: stiffness (towards 0), damping and
+                       armature from the asset; both plus DFlex's limit damping 10, applied at all times; outside its
+                       range a hinge gets ``1000 (bound - q)``
+actuation              the ant's ``200 a``, the humanoid's ``0.35 a`` times DFlex's strengths, ``a`` clipped to [-1, 1]
+contact                ground ``z = 0``; the centre of every sphere and both end points of every capsule with its
+                       radius; :class:`lagrange.PenaltyContact` (the ant's ke 4e4, kd 1e4, kf 3e3, mu 0.75; the
+                       humanoid's 2e4, 5e3, 1e3, 0.75)
+integration            1/60 s control steps of 16 (ant) or 48 (humanoid) semi-implicit Euler substeps, all forces
+                       explicit, the mass matrix formed once per control step
+                       (:data:`lagrange.tasks.locomotion.DFLEX_SOLVER`)
+episodes               1000 control steps; the reward of a transition is read on the state it lands in
+=====================  =================================================================================================
+
+The world is MuJoCo's, z up; DFlex turns the asset to y up (its start rotation -90 degrees about x), which changes
+no physics: the observation's vectors are given here in the z-up world (DFlex's y-up components permuted), the torso's
+quaternion in MuJoCo's order ``(w, x, y, z)`` relative to the upright start. DFlex's free joint moves its coordinates
+by ``p += (v + w x p) h`` and ``quat += h/2 (w, 0) quat`` (then normalised), MuJoCo's (kept here) by ``p += v h`` and
+the exponential map: the same method to first order in the step.
+"""
+
+import math
+from typing import ClassVar, final
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from equinox import AbstractClassVar, AbstractVar
+from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
+
+from lagrange import _spatial as al
+from lagrange.contact import PenaltyContact
+from lagrange.joints import Free, Hinge
+from lagrange.limits import PenaltyLimits
+from lagrange.tasks.base import AbstractTask, TaskSolver, TaskState, check_number, check_schedule, check_state
+from lagrange.tasks.locomotion import DENSITY, DFLEX_SOLVER, LIMIT_KD, LIMIT_KE, capsule_mass_and_inertia
+from lagrange.tree import Body, Motor, Tree
+
+__all__ = ["AbstractLocomotion3D", "Ant", "Humanoid", "ant_tree", "humanoid_tree", "dflex_body"]
+
+
+def _sphere(centre, radius: float):
+    m = DENSITY * 4.0 / 3.0 * math.pi * radius**3
+    return m, np.asarray(centre, float), 0.4 * m * radius**2 * np.eye(3), [(*map(float, centre), radius)]
+
+
+def _capsule(a, b, radius: float):
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    length = float(np.linalg.norm(b - a))
+    m, transverse = capsule_mass_and_inertia(radius, length)
+    ms = DENSITY * 4.0 / 3.0 * math.pi * radius**3
+    axial = (0.5 * (m - ms) + 0.4 * ms) * radius**2
+    u = (b - a) / length
+    inertia = transverse * (np.eye(3) - np.outer(u, u)) + axial * np.outer(u, u)
+    return m, (a + b) / 2, inertia, [(*map(float, a), radius), (*map(float, b), radius)]
+
+
+def dflex_body(spheres=(), capsules=(), **body) -> Body:
+    """A :class:`lagrange.Body` made of spheres and capsules as DFlex's MJCF loader makes it: density 1000, DFlex's
+    (ODE's) capsule inertia, the shapes' moments summed about their common centre of mass; the spheres' centres and the
+    capsules' end points (with their radii) its contact points, spheres first.
+
+    Args:
+        spheres: ``(centre (3,), radius)`` pairs in the body's frame [m].
+        capsules: ``(a (3,), b (3,), radius)``: a capsule from ``a`` to ``b`` (MJCF's ``fromto``) [m].
+        body: the other arguments of :class:`lagrange.Body` (``joints``, ``parent``, ``pos``, ``name``).
+    """
+    shapes = [_sphere(c, r) for c, r in spheres] + [_capsule(a, b, r) for a, b, r in capsules]
+    mass = sum(s[0] for s in shapes)
+    com = sum(s[0] * s[1] for s in shapes) / mass
+    inertia = sum(I + m * (float((c - com) @ (c - com)) * np.eye(3) - np.outer(c - com, c - com))
+                  for m, c, I, _ in shapes)
+    return Body(mass, inertia, com, contacts=[p for s in shapes for p in s[3]], **body)
+
+
+# The asset's legs: the hip's body on the torso at (sx, sy) * 0.2 turning about z in [-40, 40] degrees, the ankle's one
+# more (sx, sy) * 0.2 out turning about `axis` in `range` (degrees); the leg's capsule (sx, sy) * 0.2 long, the foot's
+# (sx, sy) * 0.4, radius 0.08; in the order of the bodies (front left, front right, back left, back right).
+_ANT_LEGS = (((1, 1), (-1, 1, 0), (30, 100)), ((-1, 1), (1, 1, 0), (-100, -30)),
+             ((-1, -1), (-1, 1, 0), (-100, -30)), ((1, -1), (1, 1, 0), (30, 100)))
+
+
+def ant_tree() -> Tree:
+    """DFlex's ant (the SHAC release's ``envs/assets/ant.xml`` as its loader reads it): a torso (a sphere of radius
+    0.25 and four capsules of radius 0.08 towards the hips) on a free joint, and four legs of two hinges each."""
+    arm, kd, r, deg = 0.05, 1.0 + LIMIT_KD, 0.08, math.pi / 180
+    bodies = [dflex_body([((0, 0, 0), 0.25)], [((0, 0, 0), (0.2 * sx, 0.2 * sy, 0), r) for (sx, sy), _, _ in _ANT_LEGS],
+                         joints=[Free()], pos=(0.0, 0.0, 0.75), name="torso")]
+    for (sx, sy), axis, (lo, hi) in _ANT_LEGS:
+        out = (0.2 * sx, 0.2 * sy, 0.0)
+        bodies.append(dflex_body(capsules=[((0, 0, 0), out, r)], parent=0, pos=out,
+                                 joints=[Hinge((0, 0, 1), damping=kd, armature=arm, range=(-40 * deg, 40 * deg))]))
+        bodies.append(dflex_body(capsules=[((0, 0, 0), (0.4 * sx, 0.4 * sy, 0), r)], parent=len(bodies) - 1, pos=out,
+                                 joints=[Hinge(axis, damping=kd, armature=arm, range=(lo * deg, hi * deg))]))
+    return Tree(bodies, gravity=(0.0, 0.0, -9.81), motors=[Motor(k, 200.0) for k in range(1, 9)],
+                contact=PenaltyContact(4e4, 1e4, 3e3, 0.75), limits=PenaltyLimits(LIMIT_KE))
+
+
+# The humanoid's joints as the asset writes them: (axis, anchor, range [deg], stiffness, damping, armature); the
+# knees carry none of their own and get parse_mjcf's defaults (5, 0.1, 0.007) as DFlex's humanoid passes them.
+_KNEE = ((0, -1, 0), (0, 0, 0.02), (-160, 2), 5.0, 0.1, 0.007)
+_HUMANOID = (  # name, parent, pos, joints, spheres, capsules; the body quats (1, 0, -0.002, 0) ignored, as by DFlex
+    ("lower_waist", 0, (-0.01, 0, -0.26), [((0, 0, 1), (0, 0, 0.065), (-45, 45), 20, 5, 0.02),
+                                           ((0, 1, 0), (0, 0, 0.065), (-75, 30), 20, 5, 0.01)],
+     [], [((0, -0.06, 0), (0, 0.06, 0), 0.06)]),
+    ("pelvis", 1, (0, 0, -0.165), [((1, 0, 0), (0, 0, 0.1), (-35, 35), 10, 5, 0.01)],
+     [], [((-0.02, -0.07, 0), (-0.02, 0.07, 0), 0.09)]),
+    ("right_thigh", 2, (0, -0.1, -0.04), [((1, 0, 0), (0, 0, 0), (-25, 5), 10, 5, 0.01),
+                                          ((0, 0, 1), (0, 0, 0), (-60, 35), 10, 5, 0.01),
+                                          ((0, 1, 0), (0, 0, 0), (-80, 20), 20, 5, 0.01)],
+     [], [((0, 0, 0), (0, 0.01, -0.34), 0.06)]),
+    ("right_shin", 3, (0, 0.01, -0.403), [_KNEE], [], [((0, 0, 0), (0, 0, -0.3), 0.049)]),
+    ("right_foot", 4, (0, 0, -0.39), [((0, 1, 0), (0, 0, 0.08), (-50, 50), 2, 1, 0.006),
+                                      ((1, 0, 0.5), (0, 0, 0.08), (-50, 50), 2, 1, 0.006)],
+     [], [((-0.07, -0.02, 0), (0.14, -0.04, 0), 0.027), ((-0.07, 0, 0), (0.14, 0.02, 0), 0.027)]),
+    ("left_thigh", 2, (0, 0.1, -0.04), [((-1, 0, 0), (0, 0, 0), (-25, 5), 10, 5, 0.01),
+                                        ((0, 0, -1), (0, 0, 0), (-60, 35), 10, 5, 0.01),
+                                        ((0, 1, 0), (0, 0, 0), (-80, 20), 20, 5, 0.01)],
+     [], [((0, 0, 0), (0, -0.01, -0.34), 0.06)]),
+    ("left_shin", 6, (0, -0.01, -0.403), [_KNEE], [], [((0, 0, 0), (0, 0, -0.3), 0.049)]),
+    ("left_foot", 7, (0, 0, -0.39), [((0, 1, 0), (0, 0, 0.08), (-50, 50), 2, 1, 0.006),
+                                     ((1, 0, 0.5), (0, 0, 0.08), (-50, 50), 2, 1, 0.006)],
+     [], [((-0.07, 0.02, 0), (0.14, 0.04, 0), 0.027), ((-0.07, 0, 0), (0.14, -0.02, 0), 0.027)]),
+    ("right_upper_arm", 0, (0, -0.17, 0.06), [((2, 1, 1), (0, 0, 0), (-60, 60), 10, 5, 0.01),
+                                              ((0, -1, 1), (0, 0, 0), (-60, 60), 10, 5, 0.01)],
+     [], [((0, 0, 0), (0.16, -0.16, -0.16), 0.04)]),
+    ("right_lower_arm", 9, (0.18, -0.18, -0.18), [((0, -1, 1), (0, 0, 0), (-90, 50), 2, 1, 0.006)],
+     [((0.18, 0.18, 0.18), 0.04)], [((0.01, 0.01, 0.01), (0.17, 0.17, 0.17), 0.031)]),
+    ("left_upper_arm", 0, (0, 0.17, 0.06), [((-2, 1, -1), (0, 0, 0), (-60, 60), 10, 5, 0.01),
+                                            ((0, -1, -1), (0, 0, 0), (-60, 60), 10, 5, 0.01)],
+     [], [((0, 0, 0), (0.16, 0.16, -0.16), 0.04)]),
+    ("left_lower_arm", 11, (0.18, 0.18, -0.18), [((0, -1, -1), (0, 0, 0), (-90, 50), 2, 1, 0.006)],
+     [((0.18, -0.18, 0.18), 0.04)], [((0.01, -0.01, 0.01), (0.17, -0.17, 0.17), 0.031)]),
+)
+# DFlex's humanoid: torque = 0.35 a x these, in the order of the hinges (its motor_strengths)
+_HUMANOID_STRENGTH = (200, 200, 200, 200, 200, 600, 400, 100, 100, 200, 200, 600, 400, 100, 100, 100, 100, 200, 100,
+                      100, 200)
+
+
+def humanoid_tree() -> Tree:
+    """DFlex's humanoid (the SHAC release's ``envs/assets/humanoid.xml`` as its loader reads it): a torso (two
+    capsules and the head) on a free joint, the abdomen's three hinges, two legs of six and two arms of three; each
+    hinge's stiffness (towards 0), damping (plus DFlex's limit damping 10) and armature from the asset."""
+    deg = math.pi / 180
+    bodies = [dflex_body([((0, 0, 0.19), 0.09)], [((0, -0.07, 0), (0, 0.07, 0), 0.07),
+                                                   ((-0.01, -0.06, -0.12), (-0.01, 0.06, -0.12), 0.06)],
+                         joints=[Free()], pos=(0.0, 0.0, 1.35), name="torso")]
+    for name, parent, pos, joints, spheres, capsules in _HUMANOID:
+        hinges = [Hinge(axis, anchor, stiffness=k, damping=kd + LIMIT_KD, armature=arm, range=(lo * deg, hi * deg))
+                  for axis, anchor, (lo, hi), k, kd, arm in joints]
+        bodies.append(dflex_body(spheres, capsules, joints=hinges, parent=parent, pos=pos, name=name))
+    motors = [Motor(k + 1, 0.35 * g) for k, g in enumerate(_HUMANOID_STRENGTH)]
+    return Tree(bodies, gravity=(0.0, 0.0, -9.81), motors=motors, contact=PenaltyContact(2e4, 5e3, 1e3, 0.75),
+                limits=PenaltyLimits(LIMIT_KE))
+
+
+def _quat_axis_angle(axis, angle):
+    half = 0.5 * angle
+    return jnp.concatenate([jnp.cos(half)[..., None], jnp.sin(half)[..., None] * axis], axis=-1)
+
+
+class AbstractLocomotion3D(AbstractTask):
+    """A robot on a free joint rewarded for running along +x, DFlex's way (``envs/ant.py``, ``envs/humanoid.py``).
+
+    The observation: the torso's height, its quaternion, its origin's velocity and its angular velocity in the world,
+    the hinge angles, ``0.1 x`` the hinge velocities, the torso's up axis' vertical component, the heading (the
+    torso's x axis on the ground) against the direction to a far target on the x axis, and the last action.
+
+    Attributes:
+        chain (Tree): the robot, its first joint a :class:`lagrange.Free`.
+        start (tuple[float, ...]): the start coordinates before the noise (``nq`` of them).
+        noise_pos (float): half-width of the uniform noise on the torso's start position [m].
+        noise_angle (float): the largest angle of the start's random turn of the torso about a random axis [rad].
+        noise_joints (float): half-width of the uniform noise on the hinge angles [rad].
+        noise_qd (float): half-width of the uniform noise on every velocity, DFlex's (the torso's angular velocity
+            and its world-frame twist).
+        termination_height (float): the torso's height below which an episode ends [m].
+        action_cost (float): the reward's ``-action_cost |a|^2``.
+        target_x (float): the target's distance along x [m] (DFlex: 10000 for the ant).
+    """
+
+    chain: AbstractVar[Tree]
+    start: AbstractVar[tuple[float, ...]]
+    noise_pos: AbstractVar[float]
+    noise_angle: AbstractVar[float]
+    noise_joints: AbstractVar[float]
+    noise_qd: AbstractVar[float]
+    termination_height: AbstractVar[float]
+    action_cost: AbstractVar[float]
+    target_x: AbstractVar[float]
+    name: AbstractClassVar[str]
+    ends_early: ClassVar[bool] = True
+
+    def _check(self) -> None:
+        check_schedule(self, Tree)
+        cls = type(self).__name__
+        if not isinstance(self.chain.joints[0], Free):
+            raise TypeError(f"{cls}.chain's first joint must be a lagrange.Free, got "
+                            f"{type(self.chain.joints[0]).__name__}")
+        if len(self.start) != self.chain.nq:
+            raise ValueError(f"{cls}.start must have one entry per coordinate ({self.chain.nq}), got {self.start!r}")
+        for field in ("noise_pos", "noise_angle", "noise_joints", "noise_qd", "action_cost"):
+            check_number(self, field, 0.0)
+        check_number(self, "termination_height", -math.inf)
+        check_number(self, "target_x", 0.0, open_low=True)
+
+    @property
+    def observation_size(self) -> int:
+        nj, m = self.chain.nq - 7, self.chain.m
+        return 1 + 4 + 3 + 3 + 2 * nj + 2 + m
+
+    def reset(self, key: PRNGKeyArray) -> TaskState:
+        """DFlex's stochastic start: the start pose with ``U(-noise_pos, noise_pos)`` on the torso's position, the
+        torso turned (in its own frame) by ``U(-noise_angle, noise_angle)`` about a random axis (a uniform point of
+        the cube ``[-1/2, 1/2]^3`` normalised), ``U(-noise_joints, noise_joints)`` on every hinge; every one of
+        DFlex's velocities ``U(-noise_qd, noise_qd)`` (the torso's world angular velocity ``w`` and its world twist
+        ``v``, turned into MuJoCo's: the origin's velocity ``v + w x p`` and ``R^T w``); the last action zero.
+
+        Args:
+            key: the PRNG key it is drawn with.
+        """
+        dtype = jnp.result_type(self.chain.mass)
+        kp, ka, kx, kj, kv = jax.random.split(key, 5)
+        start = jnp.asarray(self.start, dtype)
+        pos = start[:3] + jax.random.uniform(kp, (3,), dtype, -self.noise_pos, self.noise_pos)
+        angle = jax.random.uniform(ka, (), dtype, -self.noise_angle, self.noise_angle)
+        axis = jax.random.uniform(kx, (3,), dtype, -0.5, 0.5)
+        turn = _quat_axis_angle(axis / jnp.linalg.norm(axis), angle)
+        quat = al.quat_multiply(start[3:7], turn)
+        nj = self.chain.nq - 7
+        joints = start[7:] + jax.random.uniform(kj, (nj,), dtype, -self.noise_joints, self.noise_joints)
+        v = jax.random.uniform(kv, (self.chain.nv,), dtype, -self.noise_qd, self.noise_qd)
+        w, twist = v[:3], v[3:6]
+        R = al.quat_to_matrix(quat)
+        qd = jnp.concatenate([twist + jnp.cross(w, pos), al.tmatvec(R, w), v[6:]])
+        return TaskState(jnp.concatenate([pos, quat, joints]), qd, jnp.zeros(self.chain.m, dtype))
+
+    def _frame(self, q):
+        """The torso's rotation (world from torso)."""
+        return al.quat_to_matrix(al.normalize_quat(q[3:7]))
+
+    def observe(self, state: TaskState) -> Float[Array, " observation_size"]:
+        """``[height, quaternion (w, x, y, z), velocity (3), angular velocity (3), hinge angles, 0.1 hinge velocities,
+        up_z, heading . target direction, last action]``, the vectors in the world frame (z up).
+
+        Args:
+            state: one state (with its ``action``).
+        """
+        check_state(self, state)
+        q, qd = state.q, state.qd
+        R = self._frame(q)
+        to_target = jnp.stack([self.target_x - q[0], -q[1], jnp.zeros_like(q[0])])
+        direction = to_target / jnp.linalg.norm(to_target)
+        heading = jnp.sum(R[:, 0] * direction)
+        return jnp.concatenate([q[2:3], q[3:7], qd[0:3], al.matvec(R, qd[3:6]), q[7:], 0.1 * qd[6:],
+                                R[2:3, 2], heading[None], state.action])
+
+    def _progress_up_heading(self, next_state: TaskState):
+        obs = self.observe(next_state)
+        nj = self.chain.nq - 7
+        return obs[5], obs[11 + 2 * nj], obs[12 + 2 * nj], obs[0]
+
+    def terminated(self, state: TaskState) -> Bool[Array, ""]:
+        """The robot fell: the torso below ``termination_height``.
+
+        Args:
+            state: one state.
+        """
+        return state.q[2] < self.termination_height
+
+    def succeeded(self, q: Float[ArrayLike, "*batch T nq"]) -> Bool[Array, " *batch"]:
+        """The torso never fell below ``termination_height``.
+
+        Args:
+            q: a trajectory of coordinates, shape ``(*batch, T, nq)``.
+        """
+        return jnp.all(jnp.asarray(q)[..., 2] >= self.termination_height, axis=-1)
+
+    def track(self, q: Float[ArrayLike, "*batch nq"]) -> dict[str, Float[Array, " *batch"]]:
+        """What a gait plot shows: the torso's x [m], height [m] and tilt (the angle of its z axis from the
+        vertical) [rad].
+
+        Args:
+            q: coordinates, shape ``(*batch, nq)``.
+        """
+        q = jnp.asarray(q)
+        up = al.quat_to_matrix(al.normalize_quat(q[..., 3:7]))[..., 2, 2]
+        return {"x [m]": q[..., 0], "height [m]": q[..., 2], "tilt [rad]": jnp.arccos(jnp.clip(up, -1.0, 1.0))}
+
+
+@final
+class Ant(AbstractLocomotion3D):
+    """DFlex's ant (the SHAC paper's); build it with :meth:`diffrl`.
+
+    =====================  =============================================================================================
+    state ``q`` / ``qd``   (15) the torso's position and quaternion ``(w, x, y, z)``, 8 hinge angles (hip, ankle of each
+                           leg: front left, front right, back left, back right); (14) MuJoCo's velocities
+    action (gear)          the 8 hinge torques ``200 a`` N m, ``a`` clipped to [-1, 1]
+    observation (37)       height, quaternion (4), velocity (3), angular velocity (3, world), hinge angles (8),
+                           ``0.1 x`` hinge velocities (8), up_z, heading . target, last action (8)
+    reward per step        ``v_x + 0.1 up_z + heading + (height - 0.27)`` of the state the step lands in
+    early end              height < 0.27 m, after the step's reward
+    episode                1000 control steps of 1/60 s (16.7 s)
+    reset                  torso at (0, 0, 0.75) + U(-0.1, 0.1), turned up to 7.5 degrees about a random axis; hinges
+                           (0, 1, 0, -1, 0, -1, 0, 1) + U(-0.2, 0.2) rad; DFlex's velocities U(-0.25, 0.25)
+    bodies (kg)            torso 96.78 (its sphere 65.45), each thigh 7.83, each foot 13.52 (182.18)
+    =====================  =============================================================================================
+    """
+
+    chain: Tree
+    dt: float = eqx.field(static=True, default=1.0 / 60.0, kw_only=True)
+    horizon: int = eqx.field(static=True, default=1000, kw_only=True)
+    substeps: int = eqx.field(static=True, default=16, kw_only=True)
+    solver: TaskSolver = eqx.field(static=True, default=DFLEX_SOLVER, kw_only=True)
+    start: tuple[float, ...] = eqx.field(static=True, default=(0.0, 0.0, 0.75, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0,
+                                                                -1.0, 0.0, -1.0, 0.0, 1.0), kw_only=True)
+    noise_pos: float = eqx.field(static=True, default=0.1, kw_only=True)
+    noise_angle: float = eqx.field(static=True, default=math.pi / 24, kw_only=True)
+    noise_joints: float = eqx.field(static=True, default=0.2, kw_only=True)
+    noise_qd: float = eqx.field(static=True, default=0.25, kw_only=True)
+    termination_height: float = eqx.field(static=True, default=0.27, kw_only=True)
+    action_cost: float = eqx.field(static=True, default=0.0, kw_only=True)
+    target_x: float = eqx.field(static=True, default=10000.0, kw_only=True)
+
+    name: ClassVar[str] = "ant"
+
+    def __check_init__(self):
+        self._check()
+
+    @classmethod
+    def diffrl(cls, **overrides) -> "Ant":
+        """The SHAC paper's ant as DFlex runs it; ``overrides`` replace fields (``solver=lg.SemiImplicitEuler()``
+        for exact dynamics without DFlex's held mass matrix, ``horizon=``, ...).
+
+        Raises:
+            ValueError, TypeError: naming a field out of range.
+        """
+        return cls(ant_tree(), **overrides)
+
+    def reward(self, state: TaskState, action: Float[ArrayLike, " 8"], next_state: TaskState) -> Float[Array, ""]:
+        """DFlex's ant reward of the state the step lands in (see the table).
+
+        Args:
+            state: the state before (unused).
+            action: the action, shape ``(8,)``.
+            next_state: the state after.
+        """
+        progress, up, heading, height = self._progress_up_heading(next_state)
+        a = jnp.clip(action, -1.0, 1.0)
+        return progress + 0.1 * up + heading + (height - self.termination_height) - self.action_cost * jnp.sum(a * a)
+
+
+@final
+class Humanoid(AbstractLocomotion3D):
+    """DFlex's humanoid (the SHAC paper's); build it with :meth:`diffrl`.
+
+    =====================  =============================================================================================
+    state ``q`` / ``qd``   (28) the torso's position and quaternion ``(w, x, y, z)``, 21 hinge angles (abdomen z, y, x;
+                           right hip x, z, y, knee, ankle y, x; the left leg's; right shoulder 1, 2, elbow; the left
+                           arm's); (27) MuJoCo's velocities
+    action (gear)          21 hinge torques ``0.35 a x`` DFlex's strengths (abdomen 70 N m, hips 70 and 210 about y,
+                           knees 140, ankles 35, shoulders 35, elbows 70), ``a`` clipped to [-1, 1]
+    observation (76)       height, quaternion (4), velocity (3), angular velocity (3, world), hinge angles (21),
+                           ``0.1 x`` hinge velocities (21), up_z, heading . target, last action (21)
+    reward per step        ``v_x + 0.1 up_z + heading + H(height) - 0.002 |a|^2`` of the state the step lands in, with
+                           ``x = clip(height - 0.84, -1, 0.1)``, ``H = -200 x^2`` for ``x < 0``, else ``10 x``
+    early end              height < 0.74 m, after the step's reward
+    episode                1000 control steps of 1/60 s, 48 substeps each
+    reset                  torso at (0, 0, 1.35) + U(-0.1, 0.1), turned up to 7.5 degrees about a random axis; hinges
+                           U(-0.2, 0.2) rad; DFlex's velocities U(-0.25, 0.25)
+    contact                the spheres' centres and the capsules' ends (35 points), ke 2e4, kd 5e3, kf 1e3, mu 0.75
+    =====================  =============================================================================================
+
+    Attributes:
+        standing_height (float): the height term's level [m] (DFlex: 0.84).
+    """
+
+    chain: Tree
+    dt: float = eqx.field(static=True, default=1.0 / 60.0, kw_only=True)
+    horizon: int = eqx.field(static=True, default=1000, kw_only=True)
+    substeps: int = eqx.field(static=True, default=48, kw_only=True)
+    solver: TaskSolver = eqx.field(static=True, default=DFLEX_SOLVER, kw_only=True)
+    start: tuple[float, ...] = eqx.field(static=True, default=(0.0, 0.0, 1.35, 1.0, 0.0, 0.0, 0.0) + (0.0,) * 21,
+                                         kw_only=True)
+    noise_pos: float = eqx.field(static=True, default=0.1, kw_only=True)
+    noise_angle: float = eqx.field(static=True, default=math.pi / 24, kw_only=True)
+    noise_joints: float = eqx.field(static=True, default=0.2, kw_only=True)
+    noise_qd: float = eqx.field(static=True, default=0.25, kw_only=True)
+    termination_height: float = eqx.field(static=True, default=0.74, kw_only=True)
+    action_cost: float = eqx.field(static=True, default=0.002, kw_only=True)
+    target_x: float = eqx.field(static=True, default=200.0, kw_only=True)
+    standing_height: float = eqx.field(static=True, default=0.84, kw_only=True)
+
+    name: ClassVar[str] = "humanoid"
+
+    def __check_init__(self):
+        self._check()
+        check_number(self, "standing_height", -math.inf)
+
+    @classmethod
+    def diffrl(cls, **overrides) -> "Humanoid":
+        """The SHAC paper's humanoid as DFlex runs it; ``overrides`` replace fields.
+
+        Raises:
+            ValueError, TypeError: naming a field out of range.
+        """
+        return cls(humanoid_tree(), **overrides)
+
+    def reward(self, state: TaskState, action: Float[ArrayLike, " 21"], next_state: TaskState) -> Float[Array, ""]:
+        """DFlex's humanoid reward of the state the step lands in (see the table).
+
+        Args:
+            state: the state before (unused).
+            action: the action, shape ``(21,)``.
+            next_state: the state after.
+        """
+        progress, up, heading, height = self._progress_up_heading(next_state)
+        x = jnp.clip(height - self.standing_height, -1.0, 0.1)
+        a = jnp.clip(action, -1.0, 1.0)
+        return (progress + 0.1 * up + heading + jnp.where(x < 0, -200.0 * x * x, 10.0 * x)
+                - self.action_cost * jnp.sum(a * a))
