@@ -1,22 +1,25 @@
-"""SHAC, BPTT and Brax PPO on DFlex's Hopper and Cheetah: the SHAC paper's Figure 4 on two CPU cores (issue 44).
+"""SHAC, BPTT and Brax PPO on DFlex's Hopper, Cheetah, Ant and Humanoid: the SHAC paper's Figure 4 on two CPU cores.
 
     python -m benchmarks.locomotion --tasks cheetah --algos ppo --seeds 0   # train what is missing, then table+plots
     python -m benchmarks.locomotion --plot-only                            # table and plots from the saved runs
 
-Every algorithm trains on the same task objects (``Hopper.diffrl()``, ``Cheetah.diffrl()``; Brax PPO sees them through
+Every algorithm trains on the same task objects (``Hopper.diffrl()``, ``Cheetah.diffrl()``, ``Ant.diffrl()``,
+``Humanoid.diffrl()``; Brax PPO sees them through
 :class:`lagrange.interop.brax.BraxEnv`, unchanged) and every final policy is evaluated deterministically on the same 16
 random starts (``PRNGKey(10_000 + seed)``, 1000-step episodes), as the examples do.
 
-- **SHAC**: ``examples/hopper_shac.py`` / ``cheetah_shac.py`` as a user runs them (``SHACConfig.hopper()`` /
-  ``cheetah()``: the authors' configs, 16.4M / 4.1M env steps), 20 evaluations along the way.
-- **BPTT**: the SHAC paper's BPTT baseline as its authors ran it (``SHACConfig.bptt(task)``: no critic, 128-step
-  windows in 32 environments, 8.2M env steps), through the same driver.
+- **SHAC**: ``examples/<task>_shac.py`` as a user runs them (``SHACConfig.hopper()``, ``cheetah()``, ``ant()``,
+  ``humanoid()``: the authors' configs, 16.4M env steps on the hopper, 4.1M on the others), 20 evaluations along the
+  way.
+- **BPTT**: the SHAC paper's BPTT baseline as its authors ran it (``SHACConfig.bptt(task)``: no critic, windows of 128
+  steps (hopper, cheetah; 8.2M env steps) or 1000 (ant, humanoid; 64M) in 32 environments), through the same driver.
 - **Brax PPO**: Brax's PPO (``brax.training.agents.ppo``) with the SHAC authors' PPO settings
   (``examples/cfg/ppo/<task>.yaml``: 1024 environments x 32 steps per update, minibatches of 8192, 5 epochs, gamma
   0.99, GAE 0.95, lr 3e-4 with the adaptive-KL schedule at 0.008, clip 0.2, no entropy bonus, reward scale 0.01,
   gradient clip 1, value-loss weight 4 on rl_games' halved MSE, observation normalisation, ELU MLPs [128, 64, 32]
-  for the policy and the value) for 10x SHAC's env steps on the cheetah (41M, the issue's goal) and SHAC's on the
-  hopper (16.4M). What Brax's PPO does otherwise than rl_games': separate policy and value networks (rl_games shares
+  for the policy and the value; the ant's 2048 environments and minibatches of 16384, the humanoid's minibatches of
+  8192 and MLPs [256, 128, 64]) for 10x SHAC's env steps on the cheetah, the ant and the humanoid (41M) and SHAC's on
+  the hopper (16.4M). What Brax's PPO does otherwise than rl_games': separate policy and value networks (rl_games shares
   a trunk), a tanh-normal policy (a clipped Gaussian), no value normalisation, no bounds loss. Its curve is Brax's own
   deterministic evaluator (16 environments); its wall-clock includes compilation and those evaluations.
 
@@ -41,23 +44,27 @@ import numpy as np
 
 from benchmarks._cli import markdown_table, read_runs, restore_runs, run_file, save_figure, subplots
 from benchmarks.algorithms import BraxPolicy
-from lagrange.tasks import Cheetah, Hopper
+from lagrange.tasks import Ant, Cheetah, Hopper, Humanoid
 from optim import SHACConfig, evaluate
 from optim.checkpoint import write_json, write_text
 from optim.locomotion_cli import locomotion_main
 
-TASKS = {"hopper": Hopper.diffrl, "cheetah": Cheetah.diffrl}
+TASKS = {"hopper": Hopper.diffrl, "cheetah": Cheetah.diffrl, "ant": Ant.diffrl, "humanoid": Humanoid.diffrl}
 ALGORITHMS = ("shac", "bptt", "ppo")
 LABELS = {"shac": "SHAC", "bptt": "BPTT", "ppo": "Brax PPO"}
-CONFIGS = {"shac": {"hopper": SHACConfig.hopper(), "cheetah": SHACConfig.cheetah()},
+CONFIGS = {"shac": {"hopper": SHACConfig.hopper(), "cheetah": SHACConfig.cheetah(), "ant": SHACConfig.ant(),
+                    "humanoid": SHACConfig.humanoid()},
            "bptt": {t: SHACConfig.bptt(t) for t in TASKS}}
-PPO_STEPS = {"hopper": 16_384_000, "cheetah": 40_960_000}
+ACTOR_UNITS = {"humanoid": (256, 128)}  # the authors' actor_mlp; (128, 64, 32) for the others
+PPO_STEPS = {"hopper": 16_384_000, "cheetah": 40_960_000, "ant": 40_960_000, "humanoid": 40_960_000}
 PPO = dict(num_envs=1024, unroll_length=32, batch_size=256, num_minibatches=4, num_updates_per_batch=5,
            discounting=0.99, gae_lambda=0.95, learning_rate=3e-4, learning_rate_schedule="ADAPTIVE_KL",
            desired_kl=0.008, entropy_cost=0.0, clipping_epsilon=0.2, reward_scaling=0.01, max_grad_norm=1.0,
            vf_loss_coefficient=4.0, normalize_observations=True, num_evals=21)
-# the AHAC paper's data for DFlex's hopper (1000-step episodes); none is published for the cheetah
-ANCHORS = {"hopper": {"SHAC": 4800, "PPO": 4775}}
+PPO_TASK = {"ant": dict(num_envs=2048, batch_size=512), "humanoid": dict(hidden=(256, 128, 64))}  # their yaml's
+# the AHAC paper's data for DFlex's tasks (1000-step episodes); none is published for the cheetah
+ANCHORS = {"hopper": {"SHAC": 4800, "PPO": 4775}, "ant": {"SHAC": 7660, "PPO": 6605},
+           "humanoid": {"SHAC": 8390, "PPO": 7293}}
 EVAL_EPISODES = 16
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 
@@ -70,7 +77,8 @@ def run_differentiable(algo, task, seed, runs_dir):
     if os.path.exists(os.path.join(out, "checkpoint.eqx")):
         argv.append("--resume")
     cfg = CONFIGS[algo][task]
-    r = locomotion_main(f"{LABELS[algo]} on {task}", out, TASKS[task], cfg, cfg, argv=argv)
+    r = locomotion_main(f"{LABELS[algo]} on {task}", out, TASKS[task], cfg, cfg, argv=argv,
+                        actor_units=ACTOR_UNITS.get(task, (128, 64, 32)))
     curve = [(c["env_steps"], c["elapsed"], c["return"]) for c in r["curve"]]
     return {"return": r["return"], "return_std": r["return_std"], "env_steps": r["env_steps"],
             "wall_clock": r["wall_clock_s"], "curve": curve, "config": r["config"]}
@@ -85,8 +93,10 @@ def run_ppo(task_name, seed):
     from lagrange.interop.brax import BraxEnv, brax_training_compat
 
     task = TASKS[task_name]()
-    nets = functools.partial(ppo_networks.make_ppo_networks, policy_hidden_layer_sizes=(128, 64, 32),
-                             value_hidden_layer_sizes=(128, 64, 32), activation=linen.elu)
+    settings = {**PPO, **PPO_TASK.get(task_name, {})}
+    hidden = settings.pop("hidden", (128, 64, 32))
+    nets = functools.partial(ppo_networks.make_ppo_networks, policy_hidden_layer_sizes=hidden,
+                             value_hidden_layer_sizes=hidden, activation=linen.elu)
     curve, t0 = [], time.perf_counter()
 
     def progress(step, metrics):
@@ -98,13 +108,14 @@ def run_ppo(task_name, seed):
         make_policy, params, _ = ppo_train(environment=BraxEnv(task), num_timesteps=PPO_STEPS[task_name],
                                            episode_length=task.horizon, seed=seed, deterministic_eval=True,
                                            num_eval_envs=EVAL_EPISODES, network_factory=nets, progress_fn=progress,
-                                           **PPO)
+                                           **settings)
     wall = time.perf_counter() - t0
     pol = BraxPolicy(make_policy(params, deterministic=True))
     rets, _ = jax.device_get(jax.jit(lambda k: evaluate(task, pol, None, k, EVAL_EPISODES))(
         jax.random.PRNGKey(10_000 + seed)))
     return {"return": float(np.mean(rets)), "return_std": float(np.std(rets)), "env_steps": curve[-1][0],
-            "wall_clock": wall, "curve": curve, "config": {**PPO, "num_timesteps": PPO_STEPS[task_name]}}
+            "wall_clock": wall, "curve": curve, "config": {**settings, "hidden": hidden,
+                                                            "num_timesteps": PPO_STEPS[task_name]}}
 
 
 def train_one(algo, task, seed, runs_dir):
@@ -142,7 +153,7 @@ def write_table(runs, out_dir):
                          "wall-clock [s]": f"{np.mean([r['wall_clock'] for r in rs]):.0f}",
                          "published": str(ANCHORS.get(task, {}).get(LABELS[algo].split()[-1], "-"))})
     machine = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, shared"
-    md = (f"# SHAC, BPTT and Brax PPO on DFlex's Hopper and Cheetah\n\n{machine}. Regenerate: "
+    md = (f"# SHAC, BPTT and Brax PPO on DFlex's locomotion tasks\n\n{machine}. Regenerate: "
           "`python -m benchmarks.locomotion --plot-only`.\n\n"
           + markdown_table(rows, list(rows[0]) if rows else []) + "\n")
     write_text(os.path.join(out_dir, "locomotion.md"), md)

@@ -144,22 +144,24 @@ class SHACConfig(AlgorithmConfig):
 
     @classmethod
     def bptt(cls, task: str, **overrides) -> "SHACConfig":
-        """The SHAC paper's BPTT baseline as its authors ran it (``examples/cfg/bptt/<task>.yaml``): no critic,
-        windows of 128 steps in 32 environments that continue across epochs, 2000 epochs (8.2M env steps), actor lr
-        1e-3 (hopper) or 2e-3 (cheetah, cartpole) decayed linearly, the same Adam betas, gradient clip and observation
-        normalisation as SHAC.
+        """The SHAC paper's BPTT baseline as its authors ran it (``examples/cfg/bptt/<task>.yaml``): no critic, windows
+        in 32 environments that continue across epochs, 2000 epochs, the actor's lr decayed linearly, the same Adam
+        betas, gradient clip and observation normalisation as SHAC. Windows of 128 steps (hopper, cheetah: 8.2M env
+        steps) or of a whole episode, 1000 steps (ant, humanoid: 64M); actor lr 1e-3 (hopper), 2e-3 (cheetah,
+        humanoid) or 4e-3 (ant).
 
         Args:
-            task: ``"hopper"`` or ``"cheetah"``.
+            task: ``"hopper"``, ``"cheetah"``, ``"ant"`` or ``"humanoid"``.
             overrides: fields to replace.
 
         Raises:
             ValueError: for another task name.
         """
-        rates = {"hopper": 1e-3, "cheetah": 2e-3}
-        if task not in rates:
-            raise ValueError(f"SHACConfig.bptt: task must be one of {sorted(rates)}, got {task!r}")
-        return dataclasses.replace(cls(num_envs=32, short_horizon=128, iterations=2000, actor_lr=rates[task],
+        settings = {"hopper": (128, 1e-3), "cheetah": (128, 2e-3), "ant": (1000, 4e-3), "humanoid": (1000, 2e-3)}
+        if task not in settings:
+            raise ValueError(f"SHACConfig.bptt: task must be one of {sorted(settings)}, got {task!r}")
+        window, lr = settings[task]
+        return dataclasses.replace(cls(num_envs=32, short_horizon=window, iterations=2000, actor_lr=lr,
                                        critic_iterations=0, use_critic=False), **overrides)
 
     def env_steps_per_epoch(self) -> int:

@@ -27,16 +27,30 @@ def test_defaults_are_the_authors_cartpole_settings():
 
 
 def test_bptt_presets_are_the_authors_bptt_settings():
-    """``examples/cfg/bptt/{hopper,cheetah}.yaml`` in NVlabs/DiffRL: 32 actors, 128 steps, 2000 epochs, lr 1e-3 /
-    2e-3 decayed linearly to 1e-5, betas (0.7, 0.95), grad norm 1, obs_rms; no critic."""
-    for task, lr in (("hopper", 1e-3), ("cheetah", 2e-3)):
+    """``examples/cfg/bptt/{hopper,cheetah,ant,humanoid}.yaml`` in NVlabs/DiffRL: 32 actors, 128 steps (1000 for the
+    3-D tasks), 2000 epochs, lr 1e-3 / 2e-3 / 4e-3 / 2e-3 decayed linearly to 1e-5, betas (0.7, 0.95), grad norm 1,
+    obs_rms; no critic."""
+    for task, window, lr in (("hopper", 128, 1e-3), ("cheetah", 128, 2e-3), ("ant", 1000, 4e-3),
+                             ("humanoid", 1000, 2e-3)):
         cfg = optim.SHACConfig.bptt(task)
-        assert (cfg.num_envs, cfg.short_horizon, cfg.iterations, cfg.actor_lr, cfg.lr_end) == (32, 128, 2000, lr, 1e-5)
+        assert (cfg.num_envs, cfg.short_horizon, cfg.iterations, cfg.actor_lr, cfg.lr_end) == (32, window, 2000, lr,
+                                                                                               1e-5)
         assert (cfg.adam_b1, cfg.adam_b2, cfg.actor_grad_norm, cfg.normalize, cfg.gamma) == (0.7, 0.95, 1.0, True, 0.99)
-        assert not cfg.use_critic and cfg.env_steps_per_epoch() * cfg.iterations == 8_192_000
+        assert not cfg.use_critic and cfg.env_steps_per_epoch() * cfg.iterations == 32 * window * 2000
     assert optim.SHACConfig.bptt("hopper", iterations=3).iterations == 3
-    with pytest.raises(ValueError, match=r"task must be one of \['cheetah', 'hopper'\], got 'ant'"):
-        optim.SHACConfig.bptt("ant")
+    with pytest.raises(ValueError, match=r"task must be one of \['ant', 'cheetah', 'hopper', 'humanoid'\], got 'x'"):
+        optim.SHACConfig.bptt("x")
+
+
+def test_the_3d_presets_are_the_authors_settings():
+    """``examples/cfg/shac/ant.yaml`` and ``humanoid.yaml``: 64 actors x 32 steps x 2000 epochs; the ant's actor and
+    critic lr 2e-3 and target alpha 0.2; the humanoid's critic lr 5e-4, alpha 0.995, critic (128, 128)."""
+    ant, hum = optim.SHACConfig.ant(), optim.SHACConfig.humanoid()
+    for cfg in (ant, hum):
+        assert (cfg.num_envs, cfg.short_horizon, cfg.iterations, cfg.actor_lr, cfg.lam) == (64, 32, 2000, 2e-3, 0.95)
+        assert (cfg.critic_iterations, cfg.critic_minibatches, cfg.adam_b1, cfg.adam_b2) == (16, 4, 0.7, 0.95)
+    assert (ant.critic_lr, ant.target_alpha, ant.critic_units) == (2e-3, 0.2, (64, 64))
+    assert (hum.critic_lr, hum.target_alpha, hum.critic_units) == (5e-4, 0.995, (128, 128))
 
 
 def test_without_a_critic_an_epoch_trains_the_actor_and_leaves_the_critic():
