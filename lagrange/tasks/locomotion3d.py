@@ -41,6 +41,7 @@ by ``p += (v + w x p) h`` and ``quat += h/2 (w, 0) quat`` (then normalised), MuJ
 the exponential map: the same method to first order in the step.
 """
 
+import abc
 import math
 from typing import ClassVar, final
 
@@ -278,10 +279,28 @@ class AbstractLocomotion3D(AbstractTask):
         return jnp.concatenate([q[2:3], q[3:7], qd[0:3], al.matvec(R, qd[3:6]), q[7:], 0.1 * qd[6:],
                                 R[2:3, 2], heading[None], state.action])
 
-    def _progress_up_heading(self, next_state: TaskState):
+    def reward(self, state: TaskState, action: Float[ArrayLike, " m"], next_state: TaskState) -> Float[Array, ""]:
+        """DFlex's reward of the state the step lands in: ``v_x + 0.1 up_z + heading + height_reward(height) -
+        action_cost |a|^2`` (each task's table).
+
+        Args:
+            state: the state before (unused).
+            action: the action, shape ``(m,)``, clipped to [-1, 1] here.
+            next_state: the state after.
+        """
         obs = self.observe(next_state)
         nj = self.chain.nq - 7
-        return obs[5], obs[11 + 2 * nj], obs[12 + 2 * nj], obs[0]
+        a = jnp.clip(action, -1.0, 1.0)
+        return (obs[5] + 0.1 * obs[11 + 2 * nj] + obs[12 + 2 * nj] + self.height_reward(obs[0])
+                - self.action_cost * jnp.sum(a * a))
+
+    @abc.abstractmethod
+    def height_reward(self, height: Float[Array, ""]) -> Float[Array, ""]:
+        """The reward's term of the torso's height [m].
+
+        Args:
+            height: the torso's height.
+        """
 
     def terminated(self, state: TaskState) -> Bool[Array, ""]:
         """The robot fell: the torso below ``termination_height``.
@@ -360,17 +379,13 @@ class Ant(AbstractLocomotion3D):
         """
         return cls(ant_tree(), **overrides)
 
-    def reward(self, state: TaskState, action: Float[ArrayLike, " 8"], next_state: TaskState) -> Float[Array, ""]:
-        """DFlex's ant reward of the state the step lands in (see the table).
+    def height_reward(self, height: Float[Array, ""]) -> Float[Array, ""]:
+        """``height - termination_height`` (DFlex's ant).
 
         Args:
-            state: the state before (unused).
-            action: the action, shape ``(8,)``.
-            next_state: the state after.
+            height: the torso's height [m].
         """
-        progress, up, heading, height = self._progress_up_heading(next_state)
-        a = jnp.clip(action, -1.0, 1.0)
-        return progress + 0.1 * up + heading + (height - self.termination_height) - self.action_cost * jnp.sum(a * a)
+        return height - self.termination_height
 
 
 @final
@@ -429,16 +444,11 @@ class Humanoid(AbstractLocomotion3D):
         """
         return cls(humanoid_tree(), **overrides)
 
-    def reward(self, state: TaskState, action: Float[ArrayLike, " 21"], next_state: TaskState) -> Float[Array, ""]:
-        """DFlex's humanoid reward of the state the step lands in (see the table).
+    def height_reward(self, height: Float[Array, ""]) -> Float[Array, ""]:
+        """DFlex's humanoid's: ``-200 x^2`` for ``x = clip(height - standing_height, -1, 0.1) < 0``, else ``10 x``.
 
         Args:
-            state: the state before (unused).
-            action: the action, shape ``(21,)``.
-            next_state: the state after.
+            height: the torso's height [m].
         """
-        progress, up, heading, height = self._progress_up_heading(next_state)
         x = jnp.clip(height - self.standing_height, -1.0, 0.1)
-        a = jnp.clip(action, -1.0, 1.0)
-        return (progress + 0.1 * up + heading + jnp.where(x < 0, -200.0 * x * x, 10.0 * x)
-                - self.action_cost * jnp.sum(a * a))
+        return jnp.where(x < 0, -200.0 * x * x, 10.0 * x)

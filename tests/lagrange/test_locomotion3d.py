@@ -72,14 +72,18 @@ def test_the_bodies_match_the_asset_compiled_by_mujoco():
     np.testing.assert_allclose(np.stack([b.com for b in ant.bodies]), np.stack([b.com for b in ref.bodies]),
                                atol=1e-12)
     assert [j.range for j in ant.joints[1:]] == [j.range for j in ref.joints[1:]]
-    q = _random_q(jax.random.PRNGKey(0), 8)
-    ours = jax.vmap(lambda x: lg.kinematics.contact_point_positions(ant, x))(q)
-    theirs = jax.vmap(lambda x: lg.kinematics.contact_point_positions(ref, x))(q)
-    assert ours.shape == (8, 25, 3) and theirs.shape == (8, 25, 3)
-    key = lambda p: np.lexsort(np.round(p.T, 9)[::-1])  # the same set of points, in any order
-    for a, b in zip(np.asarray(ours), np.asarray(theirs)):
+    _same_points_and_origins(ant, ref, _random_q(jax.random.PRNGKey(0), 8), 25)
+
+
+def _same_points_and_origins(tree, ref, q, points):
+    """The same set of contact points (in any order) and the same body origins at the poses ``q``."""
+    ours = np.asarray(jax.vmap(lambda x: lg.kinematics.contact_point_positions(tree, x))(q))
+    theirs = np.asarray(jax.vmap(lambda x: lg.kinematics.contact_point_positions(ref, x))(q))
+    assert ours.shape == theirs.shape == (len(q), points, 3)
+    key = lambda p: np.lexsort(np.round(p.T, 9)[::-1])
+    for a, b in zip(ours, theirs):
         np.testing.assert_allclose(a[key(a)], b[key(b)], atol=1e-12)
-    np.testing.assert_allclose(lg.positions(ant, q), lg.positions(ref, q), atol=1e-12)
+    np.testing.assert_allclose(lg.positions(tree, q), lg.positions(ref, q), atol=1e-12)
 
 
 def test_the_inertias_are_dflex_s_capsules():
@@ -283,13 +287,7 @@ def test_the_humanoid_matches_its_asset_compiled_by_mujoco():
                                [70, 70, 70, 70, 70, 210, 140, 35, 35, 70, 70, 210, 140, 35, 35, 35, 35, 70, 35, 35, 70])
     q = jnp.concatenate([_random_q(jax.random.PRNGKey(1), 6)[:, :7],
                          jax.random.uniform(jax.random.PRNGKey(2), (6, 21), minval=-1.0, maxval=1.0)], axis=-1)
-    a = np.asarray(jax.vmap(lambda x: lg.kinematics.contact_point_positions(tree, x))(q))
-    b = np.asarray(jax.vmap(lambda x: lg.kinematics.contact_point_positions(ref, x))(q))
-    assert a.shape == b.shape == (6, 35, 3)
-    key = lambda p: np.lexsort(np.round(p.T, 9)[::-1])
-    for x, y in zip(a, b):
-        np.testing.assert_allclose(x[key(x)], y[key(y)], atol=1e-12)
-    np.testing.assert_allclose(lg.positions(tree, q), lg.positions(ref, q), atol=1e-12)
+    _same_points_and_origins(tree, ref, q, 35)
 
 
 def test_the_humanoid_s_reward_and_early_end():
