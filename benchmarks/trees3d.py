@@ -83,12 +83,13 @@ def measure(name, B, T):
         tr = lg.simulate(tree, q, qd, u, dt, lg.SemiImplicitEuler(), check=False)
         return tr.q[-1], tr.qd[-1]
 
-    forward = jax.jit(jax.vmap(final))
+    forward = jax.jit(jax.vmap(final), compiler_options=lg.compiler_options(tree))
     loss = lambda q, qd, u: jnp.sum(jnp.concatenate(final(q, qd, u)) ** 2)  # noqa: E731
-    gradient = jax.jit(jax.vmap(jax.grad(loss, argnums=(0, 1, 2))))
+    gradient = jax.jit(jax.vmap(jax.grad(loss, argnums=(0, 1, 2))), compiler_options=lg.compiler_options(tree))
     args = tuple(jnp.asarray(x) for x in (q0, qd0, us))
     t = time.perf_counter()
-    jax.jit(lambda q, qd, u: lg.forward_dynamics(tree, q, qd, u, check=False)).lower(
+    jax.jit(lambda q, qd, u: lg.forward_dynamics(tree, q, qd, u, check=False),
+            compiler_options=lg.compiler_options(tree)).lower(
         args[0][0], args[1][0], args[2][0, 0]).compile()
     compile_fd = time.perf_counter() - t
     t = time.perf_counter()
@@ -121,8 +122,8 @@ def on_the_ground(B, T):
     q0[:, 7:] += rng.uniform(-0.1, 0.1, (B, model.nq - 7))
     qd0 = rng.uniform(-0.25, 0.25, (B, model.nv))
     us = rng.uniform(-1, 1, (B, T, model.nu))
-    forward = jax.jit(jax.vmap(lambda q, qd, u: lg.simulate(tree, q, qd, u, DFLEX_ANT["dt"], lg.SemiImplicitEuler(),
-                                                            check=False).q[-1]))
+    run = lambda q, qd, u: lg.simulate(tree, q, qd, u, DFLEX_ANT["dt"], lg.SemiImplicitEuler(), check=False).q[-1]  # noqa: E731
+    forward = jax.jit(jax.vmap(run), compiler_options=lg.compiler_options(tree))
     args = tuple(jnp.asarray(x) for x in (q0, qd0, us))
     ours = median_time(forward, *args, repeats=3, best=True) / (B * T)
     finite = bool(np.all(np.isfinite(np.asarray(forward(*args)))))

@@ -1,8 +1,6 @@
 """lagrange: exact, fast, differentiable dynamics of kinematic trees in pure JAX: planar chains and trees (with ground
 contact and joint limits by penalty forces) and spatial trees of hinges, slides, balls and free joints."""
 
-from lagrange import _xla_flags  # noqa: F401  (first: XLA reads its flags when JAX starts a backend)
-
 from lagrange.chain import Chain, Link
 from lagrange.joints import Ball, Free, Hinge, Slide
 from lagrange.tree import Body, Motor, Tree
@@ -19,6 +17,7 @@ from lagrange.dynamics import (
 )
 from lagrange.integrate import Trajectory, simulate, step
 from lagrange.batch import simulate_batch
+from lagrange.compile import compiler_options
 from lagrange.kinematics import com_positions, positions
 from lagrange.solvers import RK4, Dopri5, Dopri8, Euler, SemiImplicitEuler, SymplecticEuler, Tsit5
 from lagrange import systems
@@ -39,6 +38,7 @@ __all__ = [
     "SymplecticEuler",
     "Tsit5",
     "Trajectory",
+    "compiler_options",
     "simulate",
     "simulate_batch",
     "step",

@@ -27,6 +27,7 @@ from lagrange.tasks import AbstractTask
 from optim.base import Trainer
 from optim.bptt import apg_steps, flatten_policy, mean_return_loss
 from optim.curriculum import Curriculum, check_curriculum
+from lagrange.compile import compiler_options
 from optim.devices import jit_replicated, population_mesh
 from optim.episode import episode
 from optim.inner_apg import InnerAPGConfig
@@ -360,5 +361,5 @@ def make_trainer(config: CEAPGConfig, task: AbstractTask, policy, *, objective: 
             raise ValueError(f"which must be 'best' or 'mean', got {which!r}")
         return unravel(state.best), state.best_normalizer
 
-    return Trainer(init, jit_replicated(update, replicated), policy_of, task, config,
+    return Trainer(init, jit_replicated(update, replicated, compiler_options(task.chain)), policy_of, task, config,
                    ("best_return", "elite_return", "mean_return"))

@@ -91,17 +91,18 @@ def shard_count(size: int, *, divides: bool = False) -> int:
     return n
 
 
-def jit_replicated(update, replicated):
+def jit_replicated(update, replicated, compiler_options=None):
     """``jax.jit(update)`` for a state that lives replicated on every device: the state is placed there before each
     call, which keeps one jit cache entry.
 
     Args:
         update: ``update(state) -> (state, metrics)``.
         replicated: a ``NamedSharding`` with an empty ``PartitionSpec``.
+        compiler_options: XLA's options for the program (:func:`lagrange.compiler_options` of the task's model).
     """
     import jax
 
-    jitted = jax.jit(update, out_shardings=replicated)
+    jitted = jax.jit(update, out_shardings=replicated, compiler_options=compiler_options)
 
     def update_replicated(state):
         return jitted(jax.device_put(state, replicated))

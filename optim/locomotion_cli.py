@@ -27,6 +27,7 @@ from collections.abc import Callable
 import jax
 import numpy as np
 
+from lagrange.compile import compiler_options
 from lagrange.plotting import gait_animation, gait_figure
 from lagrange.tasks import AbstractTask
 from optim.checkpoint import CheckpointError
@@ -98,7 +99,8 @@ def locomotion_main(description: str, default_out: str, make_task: Callable[[], 
     except FloatingPointError as err:
         raise SystemExit(f"error: {err}") from None
     policy, norm = run.trainer.policy(run.state)
-    ep = jax.jit(lambda k: episode(task, policy, norm, k))(eval_key)
+    run = jax.jit(lambda k: episode(task, policy, norm, k), compiler_options=compiler_options(task.chain))
+    ep = run(eval_key)
     final, history = run.curve[-1], run.history
     results = {
         "task": task.name, "algorithm": algorithm, "return": final["return"], "return_std": final["return_std"],

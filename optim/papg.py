@@ -21,6 +21,7 @@ from jaxtyping import Array, Float, Int, PRNGKeyArray
 from lagrange.tasks import AbstractTask
 from optim.base import Trainer
 from optim.bptt import apg_steps, flatten_policy, mean_return_loss
+from lagrange.compile import compiler_options
 from optim.devices import jit_replicated, population_mesh
 from optim.inner_apg import InnerAPGConfig
 from optim.validate import check_int
@@ -154,4 +155,4 @@ def make_trainer(config: PAPGConfig, task: AbstractTask, policy, *, objective: C
         norm = jax.tree_util.tree_map(lambda x: x[i], state.normalizers)
         return unravel(state.params[i]), norm
 
-    return Trainer(init, jit_replicated(update, replicated), policy_of, task, config)
+    return Trainer(init, jit_replicated(update, replicated, compiler_options(task.chain)), policy_of, task, config)

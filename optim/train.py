@@ -15,6 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import PRNGKeyArray
 
+from lagrange.compile import compiler_options
 from optim import checkpoint as ckpt
 from optim.base import AlgorithmConfig, Trainer, comparable_config, config_difference, config_from_dict, config_to_dict
 from optim.bptt import flatten_policy
@@ -156,7 +157,8 @@ def train(config: AlgorithmConfig, task, policy, key: PRNGKeyArray, *, checkpoin
     elapsed = history[-1]["elapsed"] if history else 0.0
     eval_key = jax.random.PRNGKey(10_000) if eval_key is None else eval_key
     if eval_every is not None:
-        run_eval = jax.jit(lambda s: evaluate(trainer.task, *trainer.policy(s), eval_key, eval_episodes))
+        run_eval = jax.jit(lambda s: evaluate(trainer.task, *trainer.policy(s), eval_key, eval_episodes),
+                           compiler_options=compiler_options(trainer.task.chain))
 
     def evaluate_now(i):
         rets, bal = jax.device_get(run_eval(state))

@@ -13,6 +13,7 @@ from jax.sharding import NamedSharding, PartitionSpec
 
 from lagrange.tasks import AbstractTask, TaskState
 from optim.base import Trainer
+from lagrange.compile import compiler_options
 from optim.devices import jit_replicated, population_mesh
 from optim.grad_clip import clip_grad_norm
 from optim.shac.losses import actor_loss, soft_update, td_lambda_targets
@@ -196,5 +197,5 @@ def make_trainer(config, task: AbstractTask, actor: Actor) -> Trainer:
             raise ValueError(f"SHAC has one policy: which must be 'best', got {which!r}")
         return state.actor, state.normalizer
 
-    return Trainer(init, jit_replicated(update, replicated), policy_of, task, config,
+    return Trainer(init, jit_replicated(update, replicated, compiler_options(task.chain)), policy_of, task, config,
                    ("episode_return", "value_loss"))

@@ -219,24 +219,24 @@ def test_importing_the_adapters_changes_no_other_module():
     """)
 
 
-def test_importing_lagrange_turns_off_the_ynn_fusions_and_keeps_a_users_setting():
-    from lagrange import _xla_flags
 
-    env = {"XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
-    assert _xla_flags.apply(env)
-    assert env["XLA_FLAGS"] == "--xla_force_host_platform_device_count=2 --xla_cpu_experimental_ynn_fusion_type="
-    mine = {"XLA_FLAGS": "--xla_cpu_experimental_ynn_fusion_type=-reduce"}
-    assert not _xla_flags.apply(mine) and mine["XLA_FLAGS"] == "--xla_cpu_experimental_ynn_fusion_type=-reduce"
-    # in a fresh interpreter: set by the import, and the compiled program has no ynn fusion
-    code = textwrap.dedent("""
-        import os
-        import jax, jax.numpy as jnp
-        import lagrange
-        print(os.environ["XLA_FLAGS"])
-        f = jax.jit(lambda x: jnp.sum(x * x[..., None, :], axis=-1))
-        print("__ynn_fusion" in f.lower(jnp.ones((64, 3), jnp.float32)).compile().as_text())
-    """)
-    env = {k: v for k, v in __import__("os").environ.items() if k != "XLA_FLAGS"}
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, env=env, check=True)
-    flags, ynn = out.stdout.split("\n")[:2]
-    assert "--xla_cpu_experimental_ynn_fusion_type=" in flags and ynn == "False"
+def test_the_compiler_options_turn_off_the_ynn_fusions_for_a_tree_only():
+    """A spatial tree's program compiled with ``lg.compiler_options(tree)`` holds no YNNPACK fusion (one compiled
+    with the defaults does: the option's premise); a chain gets None (the defaults); other backends get None."""
+    import jax
+    import jax.numpy as jnp
+
+    import lagrange as lg
+
+    tree = lg.Tree([lg.Body(1.0, (0.1, 0.2, 0.3), joints=[lg.Free()]),
+                    lg.Body(1.0, (0.1, 0.1, 0.1), (0.0, 0.0, -0.5), joints=[lg.Hinge((0, 1, 0))])])
+    assert lg.compiler_options(tree, "cpu") == {"xla_cpu_experimental_ynn_fusion_type": ""}
+    assert lg.compiler_options(tree, "gpu") is None and lg.compiler_options(lg.systems.pendulum(), "cpu") is None
+    q = jnp.tile(tree.neutral().astype(jnp.float32), (64, 1))
+    qd = jnp.ones((64, tree.nv), jnp.float32)
+    f = jax.vmap(lambda q, qd: lg.bias_forces(tree, q, qd))
+
+    def fused(options):
+        return "__ynn_fusion" in jax.jit(f, compiler_options=options).lower(q, qd).compile().as_text()
+
+    assert fused(None) and not fused(lg.compiler_options(tree))

@@ -1,0 +1,44 @@
+"""``compiler_options(model)``: the XLA options a jitted program of a spatial tree runs best with on a CPU.
+
+jaxlib 0.10's CPU compiler hands reductions and the elementwise work around them to YNNPACK ("ynn fusions"). On the
+small batched 3x3 and 6x6 products of a spatial tree's dynamics (sums over axes of length 3 and 6) that runs several
+times slower than XLA's own loops: Gymnasium's ant on the ground, its bias forces at B = 1024 in float32, 17.0 µs an
+environment with them and 2.1 µs without; a 16-substep control step at B = 64, 23.1 ms against 4.0 ms in float32 and
+11.5 ms against 5.1 ms in float64 (the upstream report: jax-ml/jax#37465, openxla/xla#46351). Writing the sums out
+as adds avoids the ynn fusions but runs 2x slower than XLA's loops; the option below keeps XLA's loops.
+
+The planar chains and trees gain nothing measurable from it (their programs hold no such reductions), and a policy's
+matrix products keep YNNPACK's kernels there: any change of fusion moves round-off, which a chaotic swing-up amplifies
+(the CE-APG acrobot's ``--quick`` run ends at 2534 with the default fusions and at 1298 with YNNPACK's reductions off),
+so they are compiled as before.
+
+    step = jax.jit(jax.vmap(f), compiler_options=lg.compiler_options(tree))
+
+The library's own jitted programs of a task (``optim``'s trainers and evaluations) pass it.
+"""
+
+from __future__ import annotations
+
+from lagrange.tree import Tree
+
+__all__ = ["compiler_options"]
+
+YNN_OFF = {"xla_cpu_experimental_ynn_fusion_type": ""}
+"""No ynn fusion: every fusion left to XLA."""
+
+
+def compiler_options(model, backend: str | None = None) -> dict[str, str] | None:
+    """The ``compiler_options`` of ``jax.jit`` for programs of ``model``: :data:`YNN_OFF` for a spatial
+    :class:`~lagrange.tree.Tree` compiled for a CPU, else None (the compiler's defaults).
+
+    Args:
+        model: a :class:`lagrange.Tree` or a :class:`lagrange.Chain` (or anything else: None).
+        backend: the platform the program is compiled for (default: JAX's default backend).
+    """
+    if not isinstance(model, Tree):
+        return None
+    if backend is None:
+        import jax
+
+        backend = jax.default_backend()
+    return dict(YNN_OFF) if backend == "cpu" else None
