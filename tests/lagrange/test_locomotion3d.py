@@ -304,13 +304,19 @@ def test_the_humanoid_s_reward_and_early_end():
     assert abs(float(task.reward(s, 3 * a, s)) - (1.5 + 0.1 + 1.0 + 0.6 - 0.042)) < 1e-5  # the action clipped first
 
 
-def test_shac_trains_on_the_ant():
-    """Two SHAC epochs on a short ant (2 environments, windows of 3 steps, 2 substeps): the state with its last action
-    goes through the rollout, the resets and the critic; the actor's gradient is finite and not zero."""
+def test_shac_trains_on_a_3d_task():
+    """Two SHAC epochs on an ant of one leg (its torso on the free joint, one driven hinge; 2 environments, windows of
+    3 steps, 2 substeps): the state with its last action goes through the rollout, the resets and the critic; the
+    actor's gradient is finite and not zero."""
     import optim
+    from lagrange.tasks.locomotion3d import dflex_body
     from policies import Actor
 
-    task = Ant.diffrl(substeps=2, horizon=4)
+    leg = lg.Tree([dflex_body([((0, 0, 0), 0.25)], joints=[lg.Free()], pos=(0, 0, 0.5)),
+                   dflex_body(capsules=[((0, 0, 0), (0.4, 0, 0), 0.08)], parent=0, pos=(0.2, 0, 0),
+                              joints=[lg.Hinge((0, 1, 0), damping=11.0, armature=0.05)])],
+                  motors=[lg.Motor(1, 200.0)], contact=lg.PenaltyContact(4e4, 1e4, 3e3, 0.75))
+    task = Ant(leg, start=(0, 0, 0.5, 1, 0, 0, 0, 0.3), substeps=2, horizon=4)
     cfg = optim.SHACConfig.ant(num_envs=2, short_horizon=3, iterations=2, critic_iterations=1, critic_minibatches=1)
     trainer = cfg.make_trainer(task, Actor.for_task(task, units=(8,)))
     state = trainer.init(jax.random.PRNGKey(0))
@@ -318,4 +324,4 @@ def test_shac_trains_on_the_ant():
         state, metrics = trainer.update(state)
     assert int(metrics["nonfinite"]) == 0 and np.isfinite(float(metrics["value_loss"]))
     assert 0 < float(metrics["grad_norm"]) < np.inf
-    assert state.env_state.action.shape == (2, 8) and state.env_state.q.shape == (2, 15)
+    assert state.env_state.action.shape == (2, 1) and state.env_state.q.shape == (2, 8)
