@@ -99,8 +99,8 @@ def locomotion_main(description: str, default_out: str, make_task: Callable[[], 
     except FloatingPointError as err:
         raise SystemExit(f"error: {err}") from None
     policy, norm = run.trainer.policy(run.state)
-    run = jax.jit(lambda k: episode(task, policy, norm, k), compiler_options=compiler_options(task.chain))
-    ep = run(eval_key)
+    play = jax.jit(lambda k: episode(task, policy, norm, k), compiler_options=compiler_options(task.chain))
+    ep = play(eval_key)
     final, history = run.curve[-1], run.history
     results = {
         "task": task.name, "algorithm": algorithm, "return": final["return"], "return_std": final["return_std"],
