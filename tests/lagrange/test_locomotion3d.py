@@ -77,13 +77,18 @@ def test_the_bodies_match_the_asset_compiled_by_mujoco():
 
 def _same_points_and_origins(tree, ref, q, points):
     """The same set of contact points (in any order) and the same body origins at the poses ``q``."""
-    ours = np.asarray(jax.vmap(lambda x: lg.kinematics.contact_point_positions(tree, x))(q))
-    theirs = np.asarray(jax.vmap(lambda x: lg.kinematics.contact_point_positions(ref, x))(q))
+
+    @jax.jit  # one program for both trees
+    def where(q):
+        return [(jax.vmap(lambda x: lg.kinematics.contact_point_positions(t, x))(q), lg.positions(t, q))
+                for t in (tree, ref)]
+
+    (ours, o1), (theirs, o2) = jax.tree_util.tree_map(np.asarray, where(q))
     assert ours.shape == theirs.shape == (len(q), points, 3)
     key = lambda p: np.lexsort(np.round(p.T, 9)[::-1])
     for a, b in zip(ours, theirs):
         np.testing.assert_allclose(a[key(a)], b[key(b)], atol=1e-12)
-    np.testing.assert_allclose(lg.positions(tree, q), lg.positions(ref, q), atol=1e-12)
+    np.testing.assert_allclose(o1, o2, atol=1e-12)
 
 
 def test_the_inertias_are_dflex_s_capsules():
@@ -304,24 +309,29 @@ def test_the_humanoid_s_reward_and_early_end():
     assert abs(float(task.reward(s, 3 * a, s)) - (1.5 + 0.1 + 1.0 + 0.6 - 0.042)) < 1e-5  # the action clipped first
 
 
-def test_shac_trains_on_a_3d_task():
-    """Two SHAC epochs on an ant of one leg (its torso on the free joint, one driven hinge; 2 environments, windows of
-    3 steps, 2 substeps): the state with its last action goes through the rollout, the resets and the critic; the
-    actor's gradient is finite and not zero."""
-    import optim
-    from lagrange.tasks.locomotion3d import dflex_body
-    from policies import Actor
+def test_shac_s_window_runs_through_a_3d_task():
+    """SHAC's window on an ant of one leg (its torso on the free joint, one driven hinge; 2 environments, 3 steps, 2
+    substeps), one about to fall: the state with its last action goes through the rollout and the reset, the loss is
+    finite. (Gradients through 3-D contact: test_contact3d.py.)"""
+    from lagrange.tasks.dflex_trees import dflex_body
+    from optim.shac.losses import actor_loss
+    from policies import Actor, Critic
 
     leg = lg.Tree([dflex_body([((0, 0, 0), 0.25)], joints=[lg.Free()], pos=(0, 0, 0.5)),
                    dflex_body(capsules=[((0, 0, 0), (0.4, 0, 0), 0.08)], parent=0, pos=(0.2, 0, 0),
                               joints=[lg.Hinge((0, 1, 0), damping=11.0, armature=0.05)])],
                   motors=[lg.Motor(1, 200.0)], contact=lg.PenaltyContact(4e4, 1e4, 3e3, 0.75))
-    task = Ant(leg, start=(0, 0, 0.5, 1, 0, 0, 0, 0.3), substeps=2, horizon=4)
-    cfg = optim.SHACConfig.ant(num_envs=2, short_horizon=3, iterations=2, critic_iterations=1, critic_minibatches=1)
-    trainer = cfg.make_trainer(task, Actor.for_task(task, units=(8,)))
-    state = trainer.init(jax.random.PRNGKey(0))
-    for _ in range(2):
-        state, metrics = trainer.update(state)
-    assert int(metrics["nonfinite"]) == 0 and np.isfinite(float(metrics["value_loss"]))
-    assert 0 < float(metrics["grad_norm"]) < np.inf
-    assert state.env_state.action.shape == (2, 1) and state.env_state.q.shape == (2, 8)
+    task = Ant(leg, start=(0, 0, 0.5, 1, 0, 0, 0, 0.3), substeps=2, horizon=100)
+    actor, critic = Actor.for_task(task, units=(8,)), Critic(task.observation_size, (8,), key=jax.random.PRNGKey(1))
+
+    @jax.jit
+    def window(key):
+        s = jax.vmap(task.reset)(jax.random.split(key, 2))
+        s = s._replace(q=s.q.at[0, 2].set(0.28), qd=s.qd.at[0, 2].set(-3.0))  # the first about to fall below 0.27
+        return actor_loss(actor, critic, None, task, s, jnp.zeros(2, jnp.int32), jnp.zeros(2), jax.random.PRNGKey(3),
+                          short_horizon=3, horizon=100, gamma=0.99)
+
+    loss, win = window(jax.random.PRNGKey(0))
+    assert np.isfinite(float(loss)) and np.all(np.isfinite(np.asarray(win.rewards)))
+    assert bool(np.asarray(win.dones)[:, 0].any()) and int(win.progress[0]) < 3  # fell and restarted
+    assert win.env_state.action.shape == (2, 1) and win.env_state.q.shape == (2, 8)
