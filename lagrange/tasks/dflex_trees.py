@@ -27,7 +27,7 @@ def _capsule(a, b, radius: float):
     a, b = np.asarray(a, float), np.asarray(b, float)
     length = float(np.linalg.norm(b - a))
     m, transverse = capsule_mass_and_inertia(radius, length)
-    ms = DENSITY * 4.0 / 3.0 * math.pi * radius**3
+    ms = _sphere(a, radius)[0]  # the two end caps
     axial = (0.5 * (m - ms) + 0.4 * ms) * radius**2
     u = (b - a) / length
     inertia = transverse * (np.eye(3) - np.outer(u, u)) + axial * np.outer(u, u)

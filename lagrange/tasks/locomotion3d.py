@@ -144,8 +144,8 @@ class AbstractLocomotion3D(AbstractTask):
         return TaskState(jnp.concatenate([pos, quat, joints]), qd, jnp.zeros(self.chain.m, dtype))
 
     def _frame(self, q):
-        """The torso's rotation (world from torso)."""
-        return al.quat_to_matrix(al.normalize_quat(q[3:7]))
+        """The torso's rotation (world from torso), ``(..., 3, 3)``."""
+        return al.quat_to_matrix(al.normalize_quat(q[..., 3:7]))
 
     def observe(self, state: TaskState) -> Float[Array, " observation_size"]:
         """``[height, quaternion (w, x, y, z), velocity (3), angular velocity (3), hinge angles, 0.1 hinge velocities,
@@ -210,7 +210,7 @@ class AbstractLocomotion3D(AbstractTask):
             q: coordinates, shape ``(*batch, nq)``.
         """
         q = jnp.asarray(q)
-        up = al.quat_to_matrix(al.normalize_quat(q[..., 3:7]))[..., 2, 2]
+        up = self._frame(q)[..., 2, 2]
         return {"x [m]": q[..., 0], "height [m]": q[..., 2], "tilt [rad]": jnp.arccos(jnp.clip(up, -1.0, 1.0))}
 
 
