@@ -155,6 +155,10 @@ class AbstractLocomotion3D(AbstractTask):
             state: one state (with its ``action``).
         """
         check_state(self, state)
+        if state.action is None:
+            cls = type(self).__name__
+            raise ValueError(f"{cls}.observe: state.action is None; this task observes the last action: start from "
+                             f"{cls}.reset(key), or pass TaskState(q, qd, action)")
         q, qd = state.q, state.qd
         R = self._frame(q)
         to_target = jnp.stack([self.target_x - q[0], -q[1], jnp.zeros_like(q[0])])

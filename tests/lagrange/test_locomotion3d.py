@@ -11,6 +11,7 @@ import math
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import lagrange as lg
 from lagrange.interop import from_mjcf
@@ -177,6 +178,15 @@ def test_the_reset_draws_dflex_s_noise():
     for x in (w, twist, qd[:, 6:]):
         assert np.all(np.abs(x) <= 0.25 + 1e-6) and np.all(np.abs(x).max(0) > 0.24)
         assert np.all(np.abs(x.mean(0)) < 0.02)
+
+
+def test_a_state_without_its_action_is_refused_by_name():
+    task = Ant.diffrl()
+    s = task.reset(jax.random.PRNGKey(0))
+    with pytest.raises(ValueError, match=r"Ant\.observe: state\.action is None; this task observes the last action"):
+        task.observe(TaskState(s.q, s.qd))
+    with pytest.raises(ValueError, match=r"Ant: state\.action must have shape \(m,\) = \(8,\) or be None, got \(3,\)"):
+        task.observe(TaskState(s.q, s.qd, jnp.zeros(3)))
 
 
 def test_a_step_carries_the_clipped_action():
