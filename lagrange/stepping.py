@@ -160,9 +160,14 @@ def _held_mass_matrix_interval(chain: Chain, solver: SemiImplicitEuler, h, subst
             qd1 = qd + h * qdd
             return (_move(chain, q, qd1, h), qd1), None
 
-        return jax.lax.scan(body, (q, qd), None, length=substeps)[0]
+        return jax.lax.scan(_remat(solver, body), (q, qd), None, length=substeps)[0]
 
     return interval
+
+
+def _remat(solver, body):
+    """``body`` recomputed in the backward pass when the solver asks for it (``checkpoint_substeps``)."""
+    return jax.checkpoint(body) if isinstance(solver, SemiImplicitEuler) and solver.checkpoint_substeps else body
 
 
 def interval_map(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps):
@@ -198,7 +203,7 @@ def interval_map(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps):
             def body(carry, _):
                 return _fixed_substep(chain, solver, h, *carry, u), None
 
-            return jax.lax.scan(body, (q, qd), None, length=substeps)[0]
+            return jax.lax.scan(_remat(solver, body), (q, qd), None, length=substeps)[0]
 
         return interval
 

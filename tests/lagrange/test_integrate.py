@@ -250,6 +250,26 @@ def test_gradients_through_simulate(solver):
     check_grads(jax.jit(final), (q0, qd0, controls, chain.mass), order=1, modes=("fwd", "rev"))
 
 
+@pytest.mark.parametrize("hold", [False, True], ids=["own_M", "held_M"])
+def test_checkpointed_substeps_change_no_step_and_no_gradient(hold):
+    """``SemiImplicitEuler(checkpoint_substeps=True)`` recomputes each substep in the backward pass (more remats in
+    the gradient's program than without the flag) and gives the same trajectory and the same gradient to
+    round-off."""
+    chain, q0, qd0, controls = _acrobot_problem()
+
+    def final(controls, checkpoint):
+        solver = lg.SemiImplicitEuler(hold_mass_matrix=hold, checkpoint_substeps=checkpoint)
+        traj = lg.simulate(chain, q0, qd0, controls, 0.02, solver, substeps=4)
+        return jnp.concatenate([traj.q[-1], traj.qd[-1]]) @ jnp.array([1.0, 2.0, 3.0, 4.0])
+
+    remats = [str(jax.make_jaxpr(jax.grad(final), static_argnums=1)(controls, c)).count("remat")
+              for c in (False, True)]
+    assert remats[1] > remats[0]
+    (v0, g0), (v1, g1) = (jax.jit(jax.value_and_grad(final), static_argnums=1)(controls, c) for c in (False, True))
+    np.testing.assert_allclose(float(v1), float(v0), rtol=1e-14)
+    np.testing.assert_allclose(np.asarray(g1), np.asarray(g0), rtol=1e-12, atol=1e-12 * float(jnp.max(jnp.abs(g0))))
+
+
 def test_gradients_through_diffrax_adjoint():
     """The same through diffeqsolve with RecursiveCheckpointAdjoint (reverse mode), and equal to the
     fixed-step path's gradient to round-off."""

@@ -16,6 +16,8 @@ import pytest
 import lagrange as lg
 from lagrange.interop import from_mjcf
 from lagrange.tasks import Ant, Humanoid, TaskState
+from lagrange.tasks.locomotion import DFLEX_SOLVER
+from lagrange.tasks.locomotion3d import HUMANOID_SOLVER
 
 # The SHAC release's envs/assets/ant.xml (its geometry, every geom at density 1000 as DFlex's loader weighs them).
 ANT_XML = """
@@ -118,6 +120,11 @@ def test_dflex_s_loader_parameters():
     assert (float(c.ke), float(c.kd), float(c.kf), float(c.mu)) == (4e4, 1e4, 3e3, 0.75)
     assert (float(lim.ke), float(lim.kd)) == (1e3, 0.0)  # the limit damping 10 acts always: in the joints' damping
     assert sum(len(b.contacts) for b in tree.bodies) == 25
+    assert Ant.diffrl().solver == DFLEX_SOLVER and not DFLEX_SOLVER.checkpoint_substeps
+    # the humanoid's: DFlex's, each of its 48 substeps recomputed in the backward pass (test_integrate: no change)
+    assert Humanoid.__dataclass_fields__["solver"].default == HUMANOID_SOLVER
+    assert HUMANOID_SOLVER == lg.SemiImplicitEuler(implicit_damping=False, hold_mass_matrix=True,
+                                                   checkpoint_substeps=True)
 
 
 def _state(psi=0.0, pos=(0.0, 0.0, 0.6), v=(0.0, 0.0, 0.0), w=(0.0, 0.0, 0.0), action=None):
@@ -323,15 +330,10 @@ def test_shac_s_window_runs_through_a_3d_task():
     """SHAC's window on an ant of one leg (its torso on the free joint, one driven hinge; 2 environments, 3 steps, 2
     substeps), one about to fall: the state with its last action goes through the rollout and the reset, the loss is
     finite. (Gradients through 3-D contact: test_contact3d.py.)"""
-    from lagrange.tasks.dflex_trees import dflex_body
     from optim.shac.losses import actor_loss
     from policies import Actor, Critic
 
-    leg = lg.Tree([dflex_body([((0, 0, 0), 0.25)], joints=[lg.Free()], pos=(0, 0, 0.5)),
-                   dflex_body(capsules=[((0, 0, 0), (0.4, 0, 0), 0.08)], parent=0, pos=(0.2, 0, 0),
-                              joints=[lg.Hinge((0, 1, 0), damping=11.0, armature=0.05)])],
-                  motors=[lg.Motor(1, 200.0)], contact=lg.PenaltyContact(4e4, 1e4, 3e3, 0.75))
-    task = Ant(leg, start=(0, 0, 0.5, 1, 0, 0, 0, 0.3), substeps=2, horizon=100)
+    task = Ant(_one_leg(), start=(0, 0, 0.5, 1, 0, 0, 0, 0.3), substeps=2, horizon=100)
     actor, critic = Actor.for_task(task, units=(8,)), Critic(task.observation_size, (8,), key=jax.random.PRNGKey(1))
 
     @jax.jit
@@ -345,3 +347,14 @@ def test_shac_s_window_runs_through_a_3d_task():
     assert np.isfinite(float(loss)) and np.all(np.isfinite(np.asarray(win.rewards)))
     assert bool(np.asarray(win.dones)[:, 0].any()) and int(win.progress[0]) < 3  # fell and restarted
     assert win.env_state.action.shape == (2, 1) and win.env_state.q.shape == (2, 8)
+
+
+def _one_leg():
+    """An ant of one leg: its torso on the free joint, one driven hinge, the ant's contact."""
+    from lagrange.tasks.dflex_trees import dflex_body
+
+    return lg.Tree([dflex_body([((0, 0, 0), 0.25)], joints=[lg.Free()], pos=(0, 0, 0.5)),
+                    dflex_body(capsules=[((0, 0, 0), (0.4, 0, 0), 0.08)], parent=0, pos=(0.2, 0, 0),
+                               joints=[lg.Hinge((0, 1, 0), damping=11.0, armature=0.05)])],
+                   motors=[lg.Motor(1, 200.0)], contact=lg.PenaltyContact(4e4, 1e4, 3e3, 0.75))
+
