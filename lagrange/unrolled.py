@@ -95,13 +95,8 @@ def _stack(xs, like):
 def mass_matrix(chain: Chain, q):
     """The mass matrix ``M(q)``, written out entry by entry.
 
-    Args:
-        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
-            folds them).
-        q: joint coordinates [rad or m], shape ``(*batch, n)``.
-
-    Returns:
-        ``M``, shape ``(*batch, n, n)`` [kg m^2, kg m or kg].
+    Arguments and result as :func:`lagrange.dynamics.mass_matrix`'s, for a chain that function has prepared (its
+    concrete parameters folded to NumPy arrays); nothing is checked here.
     """
     M, _ = _terms(chain, q, None, mass=True, velocity=False, gravity=False)
     return to_array(M, q[..., 0], symmetric=True)
@@ -110,15 +105,8 @@ def mass_matrix(chain: Chain, q):
 def bias_forces(chain: Chain, q, qd):
     """The bias forces, written out joint by joint.
 
-    Args:
-        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
-            folds them).
-        q: joint coordinates [rad or m], shape ``(*batch, n)``.
-        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
-
-    Returns:
-        ``C(q, qd) qd + T(q) + D qd + K (q - q_ref) - tau_limits - sum_s J_s^T f_s``, shape ``(*batch, n)``
-        [N m or N].
+    Arguments and result as :func:`lagrange.dynamics.bias_forces`'s, for a chain that function has prepared (its
+    concrete parameters folded to NumPy arrays); nothing is checked here.
     """
     _, f = _terms(chain, q, qd, mass=False, velocity=True, gravity=True)
     return _stack(f, q[..., 0])
@@ -127,13 +115,8 @@ def bias_forces(chain: Chain, q, qd):
 def gravity_forces(chain: Chain, q):
     """The generalized gravity forces, written out joint by joint.
 
-    Args:
-        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
-            folds them).
-        q: joint coordinates [rad or m], shape ``(*batch, n)``.
-
-    Returns:
-        ``T(q) = dV/dq``, shape ``(*batch, n)`` [N m or N].
+    Arguments and result as :func:`lagrange.dynamics.gravity_forces`'s, for a chain that function has prepared (its
+    concrete parameters folded to NumPy arrays); nothing is checked here.
     """
     _, f = _terms(chain, q, None, mass=False, velocity=False, gravity=True)
     return _stack(f, q[..., 0])
@@ -152,19 +135,10 @@ def _actuation(chain: Chain, u) -> list:
 def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, pivots: bool = False):
     """Joint accelerations ``qdd = M^-1 (B u - bias)``, ``M qdd = rhs`` solved unrolled over scalars.
 
-    Args:
-        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
-            folds them).
-        q: joint coordinates [rad or m], shape ``(*batch, n)``.
-        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
-        u: controls, shape ``(*batch, m)``, or ``None``.
-        implicit_damping_dt: ``h`` [s] to solve with ``M + h diag(damping)``, or ``None``.
-        pivots: also return where the solve fails.
-
-    Returns:
-        ``qdd`` of shape ``(*batch, n)`` [rad/s^2 or m/s^2]; with ``pivots=True``, ``(qdd, singular)``, ``singular``
-        (shape ``batch``) true where a pivot of the factorisation of ``M`` (the determinant for n <= 3) is not
-        positive or not finite.
+    Arguments and result as :func:`lagrange.dynamics.forward_dynamics`'s, for a chain that function has prepared
+    (its concrete parameters folded to NumPy arrays); nothing is checked here. ``pivots=True`` also returns
+    ``singular`` (shape ``batch``), true where a pivot of the factorisation of ``M`` (the determinant for n <= 3)
+    is not positive or not finite (:func:`lagrange.dynamics.forward_dynamics_and_pivots`).
     """
     M, bias = _terms(chain, q, qd, mass=True, velocity=True, gravity=True)
     tau = _actuation(chain, u) if u is not None else [0.0] * chain.n
@@ -184,15 +158,8 @@ def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, p
 def energy(chain: Chain, q, qd):
     """The kinetic and potential energy, from the jets of :func:`lagrange.kinematics.frames`.
 
-    Args:
-        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
-            folds them).
-        q: joint coordinates [rad or m], shape ``(*batch, n)``.
-        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
-
-    Returns:
-        ``(kinetic, potential)`` [J], each of shape ``(*batch,)``; the potential is zero at the chain's origin and
-        includes the joint springs and the penalty springs of limits and contact.
+    Arguments and result as :func:`lagrange.dynamics.energy`'s, for a chain that function has prepared (its
+    concrete parameters folded to NumPy arrays); nothing is checked here.
     """
     f = frames(chain, q, qd)
     like = q[..., 0]

@@ -51,19 +51,10 @@ def actuation(chain: Chain, u, batch, dtype):
 def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, pivots: bool = False):
     """Joint accelerations ``qdd = M^-1 (B u - bias)`` by the articulated-body algorithm, in O(n).
 
-    Args:
-        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
-            folds them).
-        q: joint coordinates [rad or m], shape ``(*batch, n)``.
-        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
-        u: controls, shape ``(*batch, m)``, or ``None``.
-        implicit_damping_dt: ``h`` [s] to solve with ``M + h diag(damping)`` (``D_i += h b_i``), or ``None``.
-        pivots: also return where the factorisation fails.
-
-    Returns:
-        ``qdd`` of shape ``(*batch, n)`` [rad/s^2 or m/s^2]; with ``pivots=True``, ``(qdd, singular)``, ``singular``
-        (shape ``batch``) true where a pivot ``D_i`` (the factorisation of ``M`` that ABA performs) is not positive or
-        not finite.
+    Arguments and result as :func:`lagrange.dynamics.forward_dynamics`'s, for a chain that function has prepared
+    (its concrete parameters folded to NumPy arrays); nothing is checked here. ``pivots=True`` also returns
+    ``singular`` (shape ``batch``), true where a pivot ``D_i`` of the factorisation of ``M`` that ABA performs is
+    not positive or not finite (:func:`lagrange.dynamics.forward_dynamics_and_pivots`).
     """
     u = None if (u is None or chain.m == 0) else u
     batch, dtype, q, qd = prepare(chain, q, qd, u)

@@ -19,13 +19,8 @@ from lagrange.recursive.tree import next_link, param, prepare, rcumsum
 def mass_matrix(chain: Chain, q):
     """The mass matrix ``M(q)`` by the composite-rigid-body algorithm, in O(n^2).
 
-    Args:
-        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
-            folds them).
-        q: joint coordinates [rad or m], shape ``(*batch, n)``.
-
-    Returns:
-        ``M``, shape ``(*batch, n, n)`` [kg m^2, kg m or kg].
+    Arguments and result as :func:`lagrange.dynamics.mass_matrix`'s, for a chain that function has prepared (its
+    concrete parameters folded to NumPy arrays); nothing is checked here.
     """
     batch, _, q, _ = prepare(chain, q, None)
     k = LinkKinematics(chain, q, None, len(batch))

@@ -13,15 +13,8 @@ from lagrange.recursive.tree import param, prepare
 def energy(chain: Chain, q, qd):
     """The kinetic and potential energy, from the links' spatial velocities and inertias.
 
-    Args:
-        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
-            folds them).
-        q: joint coordinates [rad or m], shape ``(*batch, n)``.
-        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
-
-    Returns:
-        ``(kinetic, potential)`` [J], each of shape ``(*batch,)``; the potential is zero at the chain's origin and
-        includes the joint springs and the penalty springs of limits and contact.
+    Arguments and result as :func:`lagrange.dynamics.energy`'s, for a chain that function has prepared (its
+    concrete parameters folded to NumPy arrays); nothing is checked here.
     """
     batch, _, q, qd = prepare(chain, q, qd)
     k = LinkKinematics(chain, q, qd, len(batch))

@@ -102,15 +102,8 @@ def _rnea(chain: Chain, k: LinkKinematics, qdd, gravity: bool):
 def bias_forces(chain: Chain, q, qd):
     """The bias forces by RNEA at ``qdd = 0``, in O(n).
 
-    Args:
-        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
-            folds them).
-        q: joint coordinates [rad or m], shape ``(*batch, n)``.
-        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
-
-    Returns:
-        ``C(q, qd) qd + T(q) + D qd + K (q - q_ref) - tau_limits - sum_s J_s^T f_s``, shape ``(*batch, n)``
-        [N m or N].
+    Arguments and result as :func:`lagrange.dynamics.bias_forces`'s, for a chain that function has prepared (its
+    concrete parameters folded to NumPy arrays); nothing is checked here.
     """
     batch, _, q, qd = prepare(chain, q, qd)
     k = LinkKinematics(chain, q, qd, len(batch))
@@ -124,13 +117,8 @@ def bias_forces(chain: Chain, q, qd):
 def gravity_forces(chain: Chain, q):
     """The generalized gravity forces by RNEA at rest, in O(n).
 
-    Args:
-        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
-            folds them).
-        q: joint coordinates [rad or m], shape ``(*batch, n)``.
-
-    Returns:
-        ``T(q) = dV/dq``, shape ``(*batch, n)`` [N m or N].
+    Arguments and result as :func:`lagrange.dynamics.gravity_forces`'s, for a chain that function has prepared (its
+    concrete parameters folded to NumPy arrays); nothing is checked here.
     """
     batch, _, q, _ = prepare(chain, q, None)
     if chain.gravity is None:

@@ -25,6 +25,7 @@ from lagrange.tasks.locomotion3d import AbstractLocomotion3D, Ant, Humanoid
 from lagrange.tasks.swingup import (
     BODY_SETS,
     PAPER_TASKS,
+    AbstractPaperSwingup,
     AbstractSwingup,
     Acrobot,
     Cartpole,
@@ -39,6 +40,7 @@ __all__ = [
     "control_step",
     "wrap",
     "AbstractSwingup",
+    "AbstractPaperSwingup",
     "Acrobot",
     "Cartpole",
     "DoubleCartpole",

@@ -38,13 +38,14 @@ substep count), so more substeps would buy nothing; the Euler variants at the sa
 radian.
 """
 
-from typing import ClassVar, final
+from collections.abc import Callable
+from typing import ClassVar, Self, final
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from equinox import AbstractVar
+from equinox import AbstractClassVar, AbstractVar
 from jaxtyping import Array, ArrayLike, Float, PRNGKeyArray
 
 from lagrange import systems
@@ -54,7 +55,8 @@ from lagrange.tasks.base import (TaskSolver, TaskState, check_chain, check_joint
                                  check_schedule)
 from lagrange.tasks.poles import AbstractPoleTask
 
-__all__ = ["AbstractSwingup", "Acrobot", "Cartpole", "DoubleCartpole", "ChainSwingup", "PAPER_TASKS", "BODY_SETS"]
+__all__ = ["AbstractSwingup", "AbstractPaperSwingup", "Acrobot", "Cartpole", "DoubleCartpole", "ChainSwingup",
+           "PAPER_TASKS", "BODY_SETS"]
 
 BODY_SETS = ("rods", "brax_v1")
 """The body sets of the paper tasks, by the name of their constructors: this library's rods (``Acrobot.rods()``), or
@@ -93,13 +95,14 @@ class AbstractSwingup(AbstractPoleTask):
     upright: float = eqx.field(static=True, default=0.0, kw_only=True)
     starts: Float[Array, "K 2*n"] | None = eqx.field(default=None, kw_only=True)
     bodies: str | None = eqx.field(static=True, default=None, kw_only=True)
+    trig: AbstractVar[bool]
 
     def __check_init__(self):
         cls = type(self).__name__
         check_schedule(self)
         check_number(self, "noise", 0.0)
         check_number(self, "upright", 0.0, 1.0)
-        if not isinstance(getattr(self, "trig", False), bool):
+        if not isinstance(self.trig, bool):
             raise ValueError(f"{cls}.trig must be True or False, got {self.trig!r}")
         if self.bodies is not None and self.bodies not in BODY_SETS:
             raise ValueError(f"{cls}.bodies must be None or one of {list(BODY_SETS)}, got {self.bodies!r}")
@@ -138,18 +141,55 @@ class AbstractSwingup(AbstractPoleTask):
             start_q, start_qd = jnp.where(up, upright, start_q), jnp.where(up, hanging, start_qd)
         return TaskState(q + start_q, qd + start_qd)
 
+    @property
+    def observation_size(self) -> int:
+        return 3 * self.n_links + (2 if self.cart else 0) if self.trig else 2 * self.chain.n
 
-def _observe(task: AbstractPoleTask, state: TaskState, trig: bool) -> Float[Array, " observation_size"]:
-    """``(x, th, dx, dth)``, or ``(x, sin th, cos th, dx, dth)`` with ``trig`` (``x, dx`` only with a cart)."""
-    th, dth = task.angles(state), task.angular_velocities(state)
-    x, dx = (state.q[:1], state.qd[:1]) if task.cart else (state.q[:0], state.qd[:0])
-    if trig:
-        return jnp.concatenate([x, jnp.sin(th), jnp.cos(th), dx, dth])
-    return jnp.concatenate([x, th, dx, dth])
+    def observe(self, state: TaskState) -> Float[Array, " observation_size"]:
+        """``(x, th, dx, dth)``, or ``(x, sin th, cos th, dx, dth)`` with ``trig`` (``x, dx`` only with a cart; each
+        final class's table gives its layout).
+
+        Args:
+            state: the state.
+        """
+        th, dth = self.angles(state), self.angular_velocities(state)
+        x, dx = (state.q[:1], state.qd[:1]) if self.cart else (state.q[:0], state.qd[:0])
+        if self.trig:
+            return jnp.concatenate([x, jnp.sin(th), jnp.cos(th), dx, dth])
+        return jnp.concatenate([x, th, dx, dth])
 
 
-def _observation_size(task: AbstractPoleTask, trig: bool) -> int:
-    return 3 * task.n_links + (2 if task.cart else 0) if trig else 2 * task.chain.n
+class AbstractPaperSwingup(AbstractSwingup):
+    """One of the CE-APG paper's three tasks: built on this library's rods (:meth:`rods`) or on the authors' Brax v1
+    bodies (:meth:`brax_v1`) of its system in :mod:`lagrange.systems`.
+
+    Attributes:
+        system (ClassVar): the function of :mod:`lagrange.systems` that builds the task's chain; its keywords for
+            the Brax v1 bodies are ``lagrange.systems.BRAX_V1[name]``.
+    """
+
+    system: AbstractClassVar[Callable[..., Chain]]
+
+    @classmethod
+    def rods(cls, **options) -> Self:
+        """The paper's task on this library's rods (``cls.system()``, e.g. :func:`lagrange.systems.acrobot`);
+        ``options`` are the task's fields (``trig`` where it has one, ``horizon``, ``noise``, ``upright``,
+        ``starts``, ``solver``, ``substeps``).
+
+        Args:
+            **options: the task's fields, keywords (``horizon=100``...).
+        """
+        return cls(cls.system(), bodies="rods", **options)
+
+    @classmethod
+    def brax_v1(cls, **options) -> Self:
+        """The paper's task on the authors' Brax v1 bodies (``lagrange.systems.BRAX_V1[cls.name]``); ``options`` as
+        for :meth:`rods`.
+
+        Args:
+            **options: the task's fields, keywords (``horizon=100``...).
+        """
+        return cls(cls.system(**systems.BRAX_V1[cls.name]), bodies="brax_v1", **options)
 
 
 def _upright_reward(task: AbstractPoleTask, next_state: TaskState) -> Float[Array, ""]:
@@ -159,7 +199,7 @@ def _upright_reward(task: AbstractPoleTask, next_state: TaskState) -> Float[Arra
 
 
 @final
-class Acrobot(AbstractSwingup):
+class Acrobot(AbstractPaperSwingup):
     """Acrobot swing-up: two links, a passive shoulder and a motor at the elbow.
 
     =====================  ========================================================================================
@@ -171,8 +211,9 @@ class Acrobot(AbstractSwingup):
     reset                  hanging down, U(-0.01, 0.01) on every coordinate and velocity
     =====================  ========================================================================================
 
-    Build it with :meth:`rods` or :meth:`brax_v1`, or ``Acrobot(chain)`` on a two-link chain of one's own
-    (:func:`lagrange.systems.acrobot`); the other fields are :class:`AbstractSwingup`'s.
+    Build it with :meth:`~AbstractPaperSwingup.rods` or :meth:`~AbstractPaperSwingup.brax_v1`, or
+    ``Acrobot(chain)`` on a two-link chain of one's own (:func:`lagrange.systems.acrobot`); the other fields are
+    :class:`AbstractSwingup`'s.
 
     Attributes:
         dt (float): the control interval [s] (paper: 0.01).
@@ -185,41 +226,10 @@ class Acrobot(AbstractSwingup):
 
     first_pole: ClassVar[int] = 0
     name: ClassVar[str] = "acrobot"
+    system: ClassVar[Callable[..., Chain]] = staticmethod(systems.acrobot)
 
     def __check_init__(self):
         check_joints(self, ("revolute", "revolute"))
-
-    @classmethod
-    def rods(cls, **options) -> "Acrobot":
-        """The paper's acrobot on this library's rods (:func:`lagrange.systems.acrobot`); ``options`` are the
-        task's fields (``trig``, ``horizon``, ``noise``, ``upright``, ``starts``, ``solver``, ``substeps``).
-
-        Args:
-            **options: the task's fields, keywords (``horizon=100``, ``trig=True``...).
-        """
-        return cls(systems.acrobot(), bodies="rods", **options)
-
-    @classmethod
-    def brax_v1(cls, **options) -> "Acrobot":
-        """The paper's acrobot on the authors' Brax v1 bodies (``lagrange.systems.BRAX_V1["acrobot"]``); ``options``
-        as for :meth:`rods`.
-
-        Args:
-            **options: the task's fields, keywords (``horizon=100``, ``trig=True``...).
-        """
-        return cls(systems.acrobot(**systems.BRAX_V1["acrobot"]), bodies="brax_v1", **options)
-
-    @property
-    def observation_size(self) -> int:
-        return _observation_size(self, self.trig)
-
-    def observe(self, state: TaskState) -> Float[Array, " observation_size"]:
-        """``(th1, th2, dth1, dth2)``, or ``(sin th1, sin th2, cos th1, cos th2, dth1, dth2)`` with ``trig``.
-
-        Args:
-            state: the state.
-        """
-        return _observe(self, state, self.trig)
 
     def reward(self, state: TaskState, action: Float[ArrayLike, " m"], next_state: TaskState) -> Float[Array, ""]:
         """``10 - (th1^2 + th2^2) - 0.01 (dth1^2 + dth2^2)`` of ``next_state``.
@@ -234,7 +244,7 @@ class Acrobot(AbstractSwingup):
 
 
 @final
-class Cartpole(AbstractSwingup):
+class Cartpole(AbstractPaperSwingup):
     """Cartpole swing-up (the paper's Table I "Pendulum"): a motorised cart on a rail carrying a passive pole.
 
     =====================  ========================================================================================
@@ -246,8 +256,9 @@ class Cartpole(AbstractSwingup):
     reset                  hanging down, U(-0.01, 0.01) on every coordinate and velocity (the cart's included)
     =====================  ========================================================================================
 
-    Build it with :meth:`rods` or :meth:`brax_v1`, or ``Cartpole(chain)`` on a chain of
-    :func:`lagrange.systems.cartpole`; the other fields are :class:`AbstractSwingup`'s.
+    Build it with :meth:`~AbstractPaperSwingup.rods` or :meth:`~AbstractPaperSwingup.brax_v1`, or
+    ``Cartpole(chain)`` on a chain of :func:`lagrange.systems.cartpole`; the other fields are
+    :class:`AbstractSwingup`'s.
 
     Attributes:
         dt (float): the control interval [s] (paper: 0.04).
@@ -259,41 +270,10 @@ class Cartpole(AbstractSwingup):
 
     first_pole: ClassVar[int] = 1
     name: ClassVar[str] = "cartpole"
+    system: ClassVar[Callable[..., Chain]] = staticmethod(systems.cartpole)
 
     def __check_init__(self):
         check_joints(self, ("prismatic", "revolute"))
-
-    @classmethod
-    def rods(cls, **options) -> "Cartpole":
-        """The paper's cartpole on this library's rods (:func:`lagrange.systems.cartpole`); ``options`` are the
-        task's fields (``trig``, ``horizon``, ``noise``, ``upright``, ``starts``, ``solver``, ``substeps``).
-
-        Args:
-            **options: the task's fields, keywords (``horizon=100``, ``trig=True``...).
-        """
-        return cls(systems.cartpole(), bodies="rods", **options)
-
-    @classmethod
-    def brax_v1(cls, **options) -> "Cartpole":
-        """The paper's cartpole on the authors' Brax v1 bodies (``lagrange.systems.BRAX_V1["cartpole"]``);
-        ``options`` as for :meth:`rods`.
-
-        Args:
-            **options: the task's fields, keywords (``horizon=100``, ``trig=True``...).
-        """
-        return cls(systems.cartpole(**systems.BRAX_V1["cartpole"]), bodies="brax_v1", **options)
-
-    @property
-    def observation_size(self) -> int:
-        return _observation_size(self, self.trig)
-
-    def observe(self, state: TaskState) -> Float[Array, " observation_size"]:
-        """``(x, th, dx, dth)``, or ``(x, sin th, cos th, dx, dth)`` with ``trig``.
-
-        Args:
-            state: the state.
-        """
-        return _observe(self, state, self.trig)
 
     def reward(self, state: TaskState, action: Float[ArrayLike, " m"], next_state: TaskState) -> Float[Array, ""]:
         """``-th^2`` of ``next_state``.
@@ -309,7 +289,7 @@ class Cartpole(AbstractSwingup):
 
 
 @final
-class DoubleCartpole(AbstractSwingup):
+class DoubleCartpole(AbstractPaperSwingup):
     """Double-cartpole swing-up: a motorised cart carrying two passive poles in series.
 
     =====================  ========================================================================================
@@ -321,8 +301,9 @@ class DoubleCartpole(AbstractSwingup):
     reset                  hanging down, U(-0.01, 0.01) on every coordinate and velocity (the cart's included)
     =====================  ========================================================================================
 
-    Build it with :meth:`rods` or :meth:`brax_v1`, or ``DoubleCartpole(chain)`` on a chain of
-    :func:`lagrange.systems.double_cartpole`; the other fields are :class:`AbstractSwingup`'s.
+    Build it with :meth:`~AbstractPaperSwingup.rods` or :meth:`~AbstractPaperSwingup.brax_v1`, or
+    ``DoubleCartpole(chain)`` on a chain of :func:`lagrange.systems.double_cartpole`; the other fields are
+    :class:`AbstractSwingup`'s.
 
     Attributes:
         dt (float): the control interval [s] (paper: 0.01).
@@ -334,41 +315,10 @@ class DoubleCartpole(AbstractSwingup):
     trig: ClassVar[bool] = True
     first_pole: ClassVar[int] = 1
     name: ClassVar[str] = "double_cartpole"
+    system: ClassVar[Callable[..., Chain]] = staticmethod(systems.double_cartpole)
 
     def __check_init__(self):
         check_joints(self, ("prismatic", "revolute", "revolute"))
-
-    @classmethod
-    def rods(cls, **options) -> "DoubleCartpole":
-        """The paper's double cartpole on this library's rods (:func:`lagrange.systems.double_cartpole`); ``options``
-        are the task's fields (``horizon``, ``noise``, ``upright``, ``starts``, ``solver``, ``substeps``).
-
-        Args:
-            **options: the task's fields, keywords (``horizon=100``, ``trig=True``...).
-        """
-        return cls(systems.double_cartpole(), bodies="rods", **options)
-
-    @classmethod
-    def brax_v1(cls, **options) -> "DoubleCartpole":
-        """The paper's double cartpole on the authors' Brax v1 bodies
-        (``lagrange.systems.BRAX_V1["double_cartpole"]``); ``options`` as for :meth:`rods`.
-
-        Args:
-            **options: the task's fields, keywords (``horizon=100``, ``trig=True``...).
-        """
-        return cls(systems.double_cartpole(**systems.BRAX_V1["double_cartpole"]), bodies="brax_v1", **options)
-
-    @property
-    def observation_size(self) -> int:
-        return _observation_size(self, True)
-
-    def observe(self, state: TaskState) -> Float[Array, " observation_size"]:
-        """``(x, sin th1, sin th2, cos th1, cos th2, dx, dth1, dth2)``.
-
-        Args:
-            state: the state.
-        """
-        return _observe(self, state, True)
 
     def reward(self, state: TaskState, action: Float[ArrayLike, " m"], next_state: TaskState) -> Float[Array, ""]:
         """``10 - (th1^2 + th2^2 + x^2) - 0.01 (dth1^2 + dth2^2)`` of ``next_state``.
@@ -417,18 +367,6 @@ class ChainSwingup(AbstractSwingup):
             raise ValueError(f"ChainSwingup needs revolute joints only, got joints={self.chain.joints}")
         if self.chain.m < 1:
             raise ValueError("ChainSwingup needs an actuated chain (some link with a gear), got chain.m=0")
-
-    @property
-    def observation_size(self) -> int:
-        return _observation_size(self, self.trig)
-
-    def observe(self, state: TaskState) -> Float[Array, " observation_size"]:
-        """``(th, dth)``, or ``(sin th, cos th, dth)`` with ``trig``.
-
-        Args:
-            state: the state.
-        """
-        return _observe(self, state, self.trig)
 
     def reward(self, state: TaskState, action: Float[ArrayLike, " m"], next_state: TaskState) -> Float[Array, ""]:
         """``10 - sum th_i^2 - 0.01 sum dth_i^2`` of ``next_state``.
