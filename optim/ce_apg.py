@@ -199,14 +199,7 @@ class CEAPGConfig(InnerAPGConfig):
         return sum(self.env_steps_per_iteration(horizon, i) for i in range(self.iterations))
 
     def make_trainer(self, task: AbstractTask, policy, *, objective: Callable | None = None) -> Trainer:
-        """:func:`optim.ce_apg.make_trainer` of this config.
-
-        Args:
-            task: the task to train on, and the one the trainer evaluates.
-            policy: the policy module, its architecture (the algorithm draws the initial weights from the run's key).
-            objective: the loss of a batch of episodes each APG step minimises (default :func:`optim.mean_return_loss`,
-                minus the mean return).
-        """
+        """:func:`optim.ce_apg.make_trainer` of this config (the arguments are documented there)."""
         return make_trainer(self, task, policy, objective=objective)
 
 

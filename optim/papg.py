@@ -54,14 +54,7 @@ class PAPGConfig(InnerAPGConfig):
         return self.num_runs * self.apg_steps * self.episodes * horizon
 
     def make_trainer(self, task: AbstractTask, policy, *, objective: Callable | None = None) -> Trainer:
-        """:func:`optim.papg.make_trainer` of this config.
-
-        Args:
-            task: the task to train on, and the one the trainer evaluates.
-            policy: the policy module, its architecture (the algorithm draws the initial weights from the run's key).
-            objective: the loss of a batch of episodes each APG step minimises (default :func:`optim.mean_return_loss`,
-                minus the mean return).
-        """
+        """:func:`optim.papg.make_trainer` of this config (the arguments are documented there)."""
         return make_trainer(self, task, policy, objective=objective)
 
 
