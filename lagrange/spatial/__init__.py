@@ -219,9 +219,7 @@ def position_derivative(tree: Tree, q, v):
         if isinstance(j, (Ball, Free)):
             lin = [] if isinstance(j, Ball) else [w[..., :3]]
             quat, omega = x[..., -4:], w[..., -3:]
-            zero = jnp.zeros_like(omega[..., :1])
-            dq = jnp.stack(al.quat_multiply(tuple(quat[..., i] for i in range(4)),
-                                            (zero[..., 0], omega[..., 0], omega[..., 1], omega[..., 2])), axis=-1)
+            dq = al.quat_multiply(quat, jnp.concatenate([jnp.zeros_like(omega[..., :1]), omega], axis=-1))
             parts.extend(lin + [0.5 * dq])
         else:
             parts.append(w)
