@@ -11,6 +11,10 @@ in one process; the gradient of a loss of the final state through lagrange's rol
 compile times of forward dynamics and of the rollout's gradient. On the ground (:func:`on_the_ground`): Gymnasium's
 ant with DFlex's contact and limit laws at its 1/960 s substep beside MuJoCo C with its own contact at that step,
 forward only. Writes ``benchmarks/results/trees3d.{json,md}`` (``--batch`` other than 1024: ``runs/benchmarks/``).
+
+    python -m benchmarks.trees3d --mjx        # the ant on the ground beside MJX, forward and gradient (~4 minutes)
+
+writes ``benchmarks/results/trees3d_mjx.{json,md}`` (:func:`beside_mjx`).
 """
 
 from __future__ import annotations
@@ -107,10 +111,9 @@ def measure(name, B, T):
 DFLEX_ANT = dict(contact=(4e4, 1e4, 3e3, 0.75), limits=(1e3, 10.0), dt=1.0 / 960)  # paper-facts.md, SHAC's Ant
 
 
-def on_the_ground(B, T):
-    """Gymnasium's ant standing on the ground at DFlex's contact and limit laws and substep (1/960 s), semi-implicit
-    Euler, against MuJoCo C with its own contact on the same model at the same step (different contact models doing
-    the same job): µs per env-step, forward."""
+def _ant_on_the_ground(B, T):
+    """Gymnasium's ant at MuJoCo's Euler and DFlex's substep, the tree with DFlex's laws, and ``B`` standing states
+    (hinges perturbed, small velocities) with ``T`` steps of random controls."""
     path = gymnasium_model("ant")
     model = mujoco.MjModel.from_xml_path(str(path))
     model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
@@ -122,6 +125,14 @@ def on_the_ground(B, T):
     q0[:, 7:] += rng.uniform(-0.1, 0.1, (B, model.nq - 7))
     qd0 = rng.uniform(-0.25, 0.25, (B, model.nv))
     us = rng.uniform(-1, 1, (B, T, model.nu))
+    return model, tree, (q0, qd0, us)
+
+
+def on_the_ground(B, T):
+    """Gymnasium's ant standing on the ground at DFlex's contact and limit laws and substep (1/960 s), semi-implicit
+    Euler, against MuJoCo C with its own contact on the same model at the same step (different contact models doing
+    the same job): µs per env-step, forward."""
+    model, tree, (q0, qd0, us) = _ant_on_the_ground(B, T)
     run = lambda q, qd, u: lg.simulate(tree, q, qd, u, DFLEX_ANT["dt"], lg.SemiImplicitEuler(), check=False).q[-1]  # noqa: E731
     forward = jax.jit(jax.vmap(run), compiler_options=lg.compiler_options(tree))
     args = tuple(jnp.asarray(x) for x in (q0, qd0, us))
@@ -132,11 +143,63 @@ def on_the_ground(B, T):
                 speedup=mj / ours, finite=finite)
 
 
+def beside_mjx(B=64, T=20):
+    """The ant on the ground as :func:`on_the_ground`, forward and the gradient of ``sum(q_T^2)`` with respect to
+    ``(q0, qd0, us)``: lagrange beside MJX (its own contact, ``opt.iterations = 1``: with more iterations its solver's
+    ``while_loop`` cannot be reverse-differentiated, mujoco#2259), µs per env-step, one process. MJX's gradient
+    through contact compiles for minutes on a CPU, hence the small batch."""
+    from mujoco import mjx
+
+    model, tree, inputs = _ant_on_the_ground(B, T)
+    model.opt.iterations = 1
+    mx = mjx.put_model(model)
+
+    def ours(q, qd, u):
+        return lg.simulate(tree, q, qd, u, DFLEX_ANT["dt"], lg.SemiImplicitEuler(), check=False).q[-1]
+
+    def theirs(q, qd, u):
+        d = mjx.make_data(mx).replace(qpos=q, qvel=qd)
+        return jax.lax.scan(lambda d, ui: (mjx.step(mx, d.replace(ctrl=ui)), None), d, u)[0].qpos
+
+    args = tuple(jnp.asarray(x) for x in inputs)
+    out = dict(batch=B, steps=T, dt=DFLEX_ANT["dt"], mjx_iterations=1)
+    for engine, final, options in (("lagrange", ours, lg.compiler_options(tree)), ("mjx", theirs, None)):
+        loss = lambda q, qd, u, final=final: jnp.sum(final(q, qd, u) ** 2)  # noqa: E731
+        for kind, fn in (("forward", final), ("gradient", jax.grad(loss, argnums=(0, 1, 2)))):
+            program = jax.jit(jax.vmap(fn), compiler_options=options)
+            t = time.perf_counter()
+            jax.block_until_ready(program(*args))
+            out[f"{engine}_{kind}_first_call_s"] = time.perf_counter() - t
+            out[f"{engine}_{kind}_us"] = median_time(program, *args, repeats=3, best=True) / (B * T) * 1e6
+            print(engine, kind, f"{out[f'{engine}_{kind}_us']:.1f} µs/env-step", flush=True)
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--batch", type=int, default=1024)
     ap.add_argument("--steps", type=int, default=50)
+    ap.add_argument("--mjx", action="store_true", help="only the ant on the ground beside MJX, forward and gradient "
+                                                       "(B = 64, 20 steps; benchmarks/results/trees3d_mjx.md)")
     args = ap.parse_args()
+    if args.mjx:
+        r = beside_mjx()
+        folder = outputs(False)[0]
+        write_json(folder / "trees3d_mjx.json", r, indent=2)
+        table = ["`python -m benchmarks.trees3d --mjx`: Gymnasium's ant on the ground, DFlex's laws (lagrange) and "
+                 f"MJX's own contact with opt.iterations = 1, semi-implicit Euler at 1/960 s, B = {r['batch']}, "
+                 f"{r['steps']} steps, float64, µs per env-step", "",
+                 "| engine | forward | gradient | gradient / forward | first call: forward, gradient |",
+                 "|---|---:|---:|---:|---|"]
+        for e in ("lagrange", "mjx"):
+            table.append(f"| {e} | {r[e + '_forward_us']:.1f} | {r[e + '_gradient_us']:.1f} | "
+                         f"{r[e + '_gradient_us'] / r[e + '_forward_us']:.1f} | "
+                         f"{r[e + '_forward_first_call_s']:.0f} s, {r[e + '_gradient_first_call_s']:.0f} s |")
+        table += ["", f"lagrange / MJX speed: forward {r['mjx_forward_us'] / r['lagrange_forward_us']:.0f}x, gradient "
+                  f"{r['mjx_gradient_us'] / r['lagrange_gradient_us']:.0f}x"]
+        write_text(folder / "trees3d_mjx.md", "\n".join(table) + "\n")
+        print("\n".join(table))
+        return
     rows = {name: measure(name, args.batch, args.steps) for name in MODELS}
     ground = on_the_ground(args.batch, args.steps)
     folder = outputs(args.batch != 1024)[0]
