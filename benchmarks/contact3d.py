@@ -51,7 +51,7 @@ def dropped(name, ke, damped):
     tree = from_mjcf(gymnasium_model(name), contact=lg.PenaltyContact(ke, k, k, MU), limits=limits)
     q0 = np.array(tree.neutral(), float)
     for j, a in zip(tree.joints, tree.qadr):  # into the ranges (the ant's ankles are out of theirs at qpos0)
-        if getattr(j, "range", None) is not None:
+        if j.range is not None:
             q0[a] = np.clip(q0[a], *j.range)
     starts = []
     for tilt in TILTS:

@@ -214,6 +214,7 @@ class Ball(AbstractJoint):
 
     nq: ClassVar[int] = 4
     nv: ClassVar[int] = 3
+    range: ClassVar[None] = None  # no limit on a ball (MJCF's ball-joint ranges are refused by name)
     pos: Float[ArrayLike, "3"]
     damping: Float[ArrayLike, ""]
     armature: Float[ArrayLike, ""]
@@ -263,6 +264,7 @@ class Free(AbstractJoint):
 
     nq: ClassVar[int] = 7
     nv: ClassVar[int] = 6
+    range: ClassVar[None] = None  # a free joint has no limit
     damping: Float[ArrayLike, ""]
     armature: Float[ArrayLike, ""]
     stiffness: Float[ArrayLike, ""]

@@ -221,7 +221,7 @@ class Tree(eqx.Module):
             seen.add(mo.joint)
         self.motors = motors
         touching = [i for i, b in enumerate(bodies) if b.contacts]
-        limited = [k for k, j in enumerate(self.joints) if getattr(j, "range", None) is not None]
+        limited = [k for k, j in enumerate(self.joints) if j.range is not None]
         if contact is not None and not isinstance(contact, PenaltyContact):
             raise TypeError(f"Tree.contact must be a lagrange.PenaltyContact or None, got {type(contact).__name__}")
         if limits is not None and not isinstance(limits, PenaltyLimits):

@@ -74,7 +74,7 @@ def actuation(tree: Tree, u):
 
 def _limited(tree: Tree):
     """``(coordinate indices, velocity indices, lower, upper)`` of the hinges and slides with a ``range``."""
-    idx = [k for k, j in enumerate(tree.joints) if getattr(j, "range", None) is not None]
+    idx = [k for k, j in enumerate(tree.joints) if j.range is not None]
     lo = np.array([tree.joints[k].range[0] for k in idx])
     hi = np.array([tree.joints[k].range[1] for k in idx])
     return np.array([tree.qadr[k] for k in idx], int), np.array([tree.vadr[k] for k in idx], int), lo, hi

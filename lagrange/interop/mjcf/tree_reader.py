@@ -93,5 +93,5 @@ def tree_from_model(mujoco, model, limits="ignore", contact="ignore") -> Tree:
     law = None
     if points:
         law = PenaltyContact(contact.ke, contact.kd, contact.kf, contact.mu, height)
-    limited = any(getattr(j, "range", None) is not None for body in bodies for j in body.joints)
+    limited = any(j.range is not None for body in bodies for j in body.joints)
     return Tree(bodies, gravity, motors=motors, contact=law, limits=limits if limited else None)
