@@ -111,6 +111,21 @@ def _recursive(chain: Chain) -> bool:
     return not isinstance(chain, Tree) and chain.n >= RECURSIVE_MIN
 
 
+def _derivation(chain: Chain | Tree):
+    """The module that computes for ``chain``: :mod:`lagrange.spatial` for a 3-D tree, else by the chain's size the
+    recursive algorithms or the unrolled derivation."""
+    if isinstance(chain, Tree):
+        return spatial
+    return recursive if _recursive(chain) else unrolled
+
+
+def _operands(chain: Chain | Tree, *xs):
+    """A tree's arguments as JAX arrays (``None`` kept); a chain's as given (its derivations fold NumPy constants)."""
+    if isinstance(chain, Tree):
+        return tuple(None if x is None else jnp.asarray(x) for x in xs)
+    return xs
+
+
 SINGULAR = (
     "lagrange.forward_dynamics: the mass matrix is singular (a non-positive pivot in its factorisation) at this "
     "configuration: some motion of the joints moves no mass, inertia or armature here, e.g. a massless link "
@@ -131,11 +146,7 @@ def mass_matrix(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "
     """
     _check(chain, "q", q)
     chain = _prepared(chain)
-    if isinstance(chain, Tree):
-        return spatial.mass_matrix(chain, jnp.asarray(q))
-    if _recursive(chain):
-        return recursive.mass_matrix(chain, q)
-    return unrolled.mass_matrix(chain, q)
+    return _derivation(chain).mass_matrix(chain, *_operands(chain, q))
 
 
 def bias_forces(
@@ -159,11 +170,7 @@ def bias_forces(
     _check(chain, "q", q)
     _check(chain, "qd", qd)
     chain = _prepared(chain)
-    if isinstance(chain, Tree):
-        return spatial.bias_forces(chain, jnp.asarray(q), jnp.asarray(qd))
-    if _recursive(chain):
-        return recursive.bias_forces(chain, q, qd)
-    return unrolled.bias_forces(chain, q, qd)
+    return _derivation(chain).bias_forces(chain, *_operands(chain, q, qd))
 
 
 def gravity_forces(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch n"]:
@@ -178,11 +185,7 @@ def gravity_forces(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array
     """
     _check(chain, "q", q)
     chain = _prepared(chain)
-    if isinstance(chain, Tree):
-        return spatial.gravity_forces(chain, jnp.asarray(q))
-    if _recursive(chain):
-        return recursive.gravity_forces(chain, q)
-    return unrolled.gravity_forces(chain, q)
+    return _derivation(chain).gravity_forces(chain, *_operands(chain, q))
 
 
 def forward_dynamics(
@@ -257,12 +260,8 @@ def _forward(chain: Chain, q, qd, u, implicit_damping_dt, *, pivots: bool, at_ru
     if u is not None:
         _check(chain, "u", u)
     chain = _prepared(chain, at_run_time=at_run_time)
-    if isinstance(chain, Tree):
-        return spatial.forward_dynamics(chain, jnp.asarray(q), jnp.asarray(qd), None if u is None else jnp.asarray(u),
-                                        implicit_damping_dt, pivots=pivots)
-    if _recursive(chain):
-        return recursive.forward_dynamics(chain, q, qd, u, implicit_damping_dt=implicit_damping_dt, pivots=pivots)
-    return unrolled.forward_dynamics(chain, q, qd, u, implicit_damping_dt, pivots=pivots)
+    return _derivation(chain).forward_dynamics(chain, *_operands(chain, q, qd, u),
+                                               implicit_damping_dt=implicit_damping_dt, pivots=pivots)
 
 
 def inverse_dynamics(
@@ -312,7 +311,5 @@ def energy(
     _check(chain, "qd", qd)
     chain = check_parameters(chain)
     if isinstance(chain, Tree):
-        return spatial.energy(_folded(chain), jnp.asarray(q), jnp.asarray(qd))
-    if _recursive(chain):
-        return recursive.energy(chain, q, qd)
-    return unrolled.energy(chain, q, qd)
+        chain = _folded(chain)
+    return _derivation(chain).energy(chain, *_operands(chain, q, qd))
