@@ -16,16 +16,3 @@ import jax  # noqa: E402  (XLA reads XLA_FLAGS when its CPU client starts, after
 
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_dtype_promotion", "standard")
-
-# The end-to-end tests at the top of tests/ (scripts, examples and docs run in subprocesses: 10-60 s each, most of the
-# slowest 15) are collected last; with two xdist workers a long one left for the end runs alone while the other worker
-# idles. Running them first (longest files first) lets the short tests fill in around them.
-FIRST = ("test_gpu_benchmark.py", "test_examples.py", "test_docs.py", "test_readme.py", "test_stability_benchmark.py")
-
-
-def pytest_collection_modifyitems(config, items):
-    def rank(item):
-        name = item.path.name
-        return FIRST.index(name) if item.path.parent.name == "tests" and name in FIRST else len(FIRST)
-
-    items.sort(key=rank)  # stable: the order within each file, and of the rest, is kept
