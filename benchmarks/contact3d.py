@@ -23,7 +23,6 @@ tolerances and semi-implicit Euler at three steps, against Dopri8 at ``rtol = at
 from __future__ import annotations
 
 import argparse
-import time
 
 import jax
 
@@ -34,6 +33,7 @@ import numpy as np  # noqa: E402
 
 import lagrange as lg  # noqa: E402
 from benchmarks._cli import REPO, gymnasium_model, markdown_table  # noqa: E402
+from benchmarks._timing import median_time  # noqa: E402
 from lagrange.interop.mjcf import from_mjcf  # noqa: E402
 from lagrange.spatial.contact import contact_spots  # noqa: E402
 from lagrange.spatial.kinematics import Kinematics  # noqa: E402
@@ -148,18 +148,12 @@ INTERVAL = 0.01
 
 def _timed_drop(tree, q0, solver, substeps, tol=None):
     """The final ``q`` of a ``DURATION`` drop from ``q0`` and the run time [s] of its compiled program (the best of 5
-    calls after the first)."""
+    repeats after the first call)."""
     n = int(round(DURATION / INTERVAL))
     run = jax.jit(lambda q: lg.simulate(tree, q, jnp.zeros(tree.nv), jnp.zeros((n, tree.m)), INTERVAL, solver,
                                         substeps=substeps, rtol=tol, atol=tol, max_steps=100_000).q[-1],
                   compiler_options=lg.compiler_options(tree))
-    jax.block_until_ready(run(q0))
-    times = []
-    for _ in range(5):
-        t0 = time.perf_counter()
-        q = jax.block_until_ready(run(q0))
-        times.append(time.perf_counter() - t0)
-    return np.asarray(q), min(times)
+    return np.asarray(run(q0)), median_time(run, q0, repeats=5, best=True)
 
 
 def adaptive_table():

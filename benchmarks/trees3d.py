@@ -128,13 +128,17 @@ def _ant_on_the_ground(B, T):
     return model, tree, (q0, qd0, us)
 
 
+def _ground_rollout(tree):
+    """One environment's final ``q`` after semi-implicit Euler steps at DFlex's ant substep under controls ``u``."""
+    return lambda q, qd, u: lg.simulate(tree, q, qd, u, DFLEX_ANT["dt"], lg.SemiImplicitEuler(), check=False).q[-1]
+
+
 def on_the_ground(B, T):
     """Gymnasium's ant standing on the ground at DFlex's contact and limit laws and substep (1/960 s), semi-implicit
     Euler, against MuJoCo C with its own contact on the same model at the same step (different contact models doing
     the same job): µs per env-step, forward."""
     model, tree, (q0, qd0, us) = _ant_on_the_ground(B, T)
-    run = lambda q, qd, u: lg.simulate(tree, q, qd, u, DFLEX_ANT["dt"], lg.SemiImplicitEuler(), check=False).q[-1]  # noqa: E731
-    forward = jax.jit(jax.vmap(run), compiler_options=lg.compiler_options(tree))
+    forward = jax.jit(jax.vmap(_ground_rollout(tree)), compiler_options=lg.compiler_options(tree))
     args = tuple(jnp.asarray(x) for x in (q0, qd0, us))
     ours = median_time(forward, *args, repeats=3, best=True) / (B * T)
     finite = bool(np.all(np.isfinite(np.asarray(forward(*args)))))
@@ -154,16 +158,14 @@ def beside_mjx(B=64, T=20):
     model.opt.iterations = 1
     mx = mjx.put_model(model)
 
-    def ours(q, qd, u):
-        return lg.simulate(tree, q, qd, u, DFLEX_ANT["dt"], lg.SemiImplicitEuler(), check=False).q[-1]
-
     def theirs(q, qd, u):
         d = mjx.make_data(mx).replace(qpos=q, qvel=qd)
         return jax.lax.scan(lambda d, ui: (mjx.step(mx, d.replace(ctrl=ui)), None), d, u)[0].qpos
 
     args = tuple(jnp.asarray(x) for x in inputs)
     out = dict(batch=B, steps=T, dt=DFLEX_ANT["dt"], mjx_iterations=1)
-    for engine, final, options in (("lagrange", ours, lg.compiler_options(tree)), ("mjx", theirs, None)):
+    engines = (("lagrange", _ground_rollout(tree), lg.compiler_options(tree)), ("mjx", theirs, None))
+    for engine, final, options in engines:
         loss = lambda q, qd, u, final=final: jnp.sum(final(q, qd, u) ** 2)  # noqa: E731
         for kind, fn in (("forward", final), ("gradient", jax.grad(loss, argnums=(0, 1, 2)))):
             program = jax.jit(jax.vmap(fn), compiler_options=options)

@@ -24,10 +24,10 @@ from jax.sharding import NamedSharding, PartitionSpec
 from jaxtyping import Array, ArrayLike, Float, Int, PRNGKeyArray
 
 from lagrange.tasks import AbstractTask
+from lagrange.compile import compiler_options
 from optim.base import Trainer
 from optim.bptt import apg_steps, flatten_policy, mean_return_loss
 from optim.curriculum import Curriculum, check_curriculum
-from lagrange.compile import compiler_options
 from optim.devices import jit_replicated, population_mesh
 from optim.episode import episode
 from optim.inner_apg import InnerAPGConfig

@@ -19,9 +19,9 @@ from jax.sharding import NamedSharding, PartitionSpec
 from jaxtyping import Array, Float, Int, PRNGKeyArray
 
 from lagrange.tasks import AbstractTask
+from lagrange.compile import compiler_options
 from optim.base import Trainer
 from optim.bptt import apg_steps, flatten_policy, mean_return_loss
-from lagrange.compile import compiler_options
 from optim.devices import jit_replicated, population_mesh
 from optim.inner_apg import InnerAPGConfig
 from optim.validate import check_int

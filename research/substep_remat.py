@@ -13,26 +13,15 @@ largest difference of each gradient from the stored one's.
 
 from __future__ import annotations
 
-import time
-
 import jax
 import numpy as np
 
 import lagrange as lg
+from benchmarks._timing import median_time
 from lagrange.tasks import Ant, Humanoid
 from lagrange.tasks.locomotion import DFLEX_SOLVER
 
 B, T = 64, 32
-
-
-def _best(fn, *args, repeats=3):
-    jax.block_until_ready(fn(*args))
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(fn(*args))
-        times.append(time.perf_counter() - t0)
-    return min(times)
 
 
 def measure(cls):
@@ -56,12 +45,13 @@ def measure(cls):
         return total
 
     opts = lg.compiler_options(task.chain)
-    rows = {"forward": _best(jax.jit(window(stored, False), compiler_options=opts), actions, s0)}
+    rows = {"forward": median_time(jax.jit(window(stored, False), compiler_options=opts), actions, s0, repeats=3,
+                                   best=True)}
     grads = {}
     for name, (t, remat) in {"gradient, stored": (stored, False), "gradient, each control step recomputed":
                              (stored, True), "gradient, each substep recomputed": (per_substep, False)}.items():
         g = jax.jit(jax.grad(window(t, remat)), compiler_options=opts)
-        rows[name] = _best(g, actions, s0)
+        rows[name] = median_time(g, actions, s0, repeats=3, best=True)
         grads[name] = np.asarray(g(actions, s0))
     ref = grads["gradient, stored"]
     for name, seconds in rows.items():

@@ -12,8 +12,8 @@ import optax
 from jax.sharding import NamedSharding, PartitionSpec
 
 from lagrange.tasks import AbstractTask, TaskState
-from optim.base import Trainer
 from lagrange.compile import compiler_options
+from optim.base import Trainer
 from optim.devices import jit_replicated, population_mesh
 from optim.grad_clip import clip_grad_norm
 from optim.shac.losses import actor_loss, soft_update, td_lambda_targets

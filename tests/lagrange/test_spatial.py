@@ -232,13 +232,18 @@ def test_free_floating_humanoid_conserves_momentum_and_energy():
         assert np.all(np.abs(orders - order) < 0.4), (type(solver).__name__, orders, errs)
 
 
+def _tumbling_body_with_arm():
+    """A free body carrying a ball-jointed arm without gravity, and a tumbling start ``(tree, q0, qd0)``."""
+    tree = Tree([Body(2.0, (0.1, 0.3, 0.5), (0.1, 0.05, -0.2), joints=[Free()]),
+                 Body(1.0, (0.05, 0.02, 0.04), (0.0, 0.0, -0.3), joints=[Ball()], pos=(0.2, 0, 0))], gravity=(0, 0, 0))
+    return (tree, jnp.array([0, 0, 0, 0.9, 0.1, 0.3, 0.2, 0.8, 0.3, -0.2, 0.1]),
+            jnp.array([0.3, -0.2, 0.1, 2.0, -3.0, 1.5, 1.0, 0.5, -2.0]))
+
+
 def test_rk4_is_fourth_order_on_rotations():
     """A free body carrying a ball-jointed arm, tumbling without gravity: RK4's energy error falls at order 4 (the
     stages through dexpinv; MuJoCo's scheme without it, checked here too, is second order in the rotations)."""
-    tree = Tree([Body(2.0, (0.1, 0.3, 0.5), (0.1, 0.05, -0.2), joints=[Free()]),
-                 Body(1.0, (0.05, 0.02, 0.04), (0.0, 0.0, -0.3), joints=[Ball()], pos=(0.2, 0, 0))], gravity=(0, 0, 0))
-    q0 = jnp.array([0, 0, 0, 0.9, 0.1, 0.3, 0.2, 0.8, 0.3, -0.2, 0.1])
-    qd0 = jnp.array([0.3, -0.2, 0.1, 2.0, -3.0, 1.5, 1.0, 0.5, -2.0])
+    tree, q0, qd0 = _tumbling_body_with_arm()
     run = jax.jit(lambda q, qd, dt, n: lg.simulate(tree, q, qd, None, dt, lg.RK4(), steps=50), static_argnums=3)
     energy = jax.jit(lambda q, qd: sum(lg.energy(tree, q, qd)))
     errs = []
@@ -259,10 +264,7 @@ def test_adaptive_steps_follow_the_flow_of_a_tumbling_tree():
     quaternions in R^nq, renormalised after each interval): the quaternions stay unit, the energy is conserved and
     the final state is RK4's at a step 200 times finer than its own first guess, both to the tolerance's scale
     (measured: 1e-11 relative in the energy, 2e-10 in the state; at rtol = atol = 1e-6 the state is 3e-7 off)."""
-    tree = Tree([Body(2.0, (0.1, 0.3, 0.5), (0.1, 0.05, -0.2), joints=[Free()]),
-                 Body(1.0, (0.05, 0.02, 0.04), (0.0, 0.0, -0.3), joints=[Ball()], pos=(0.2, 0, 0))], gravity=(0, 0, 0))
-    q0 = jnp.array([0, 0, 0, 0.9, 0.1, 0.3, 0.2, 0.8, 0.3, -0.2, 0.1])
-    qd0 = jnp.array([0.3, -0.2, 0.1, 2.0, -3.0, 1.5, 1.0, 0.5, -2.0])
+    tree, q0, qd0 = _tumbling_body_with_arm()
     adaptive = jax.jit(lambda q, qd: lg.simulate(tree, q, qd, None, 0.1, lg.Tsit5(), steps=10, rtol=1e-10, atol=1e-10))(
         q0, qd0)
     fine = jax.jit(lambda q, qd: lg.simulate(tree, q, qd, None, 0.1, lg.RK4(), steps=10, substeps=200))(q0, qd0)
