@@ -1,7 +1,7 @@
 """Train SHAC on the SHAC paper's Ant (DFlex's, exact 3-D dynamics with penalty contact) with the authors' settings.
 
     python examples/ant_shac.py            # the authors' 2000 epochs x 64 envs x 32 steps (4.1M env steps)
-    python examples/ant_shac.py --quick    # a short demo: a gait that moves forward
+    python examples/ant_shac.py --quick    # 200 epochs (about 4 minutes): a gait that moves forward
     python examples/ant_shac.py --resume   # continue an interrupted run
 
 Writes ``checkpoint.eqx``, ``results.json`` (the deterministic policy's mean return over 16 episodes, env steps,
