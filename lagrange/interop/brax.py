@@ -36,14 +36,17 @@ class PipelineState(NamedTuple):
     """The Brax ``pipeline_state`` of a task.
 
     Attributes:
-        q (Float[Array, "n"]): coordinates [rad; m for a cart].
-        qd (Float[Array, "n"]): velocities [rad/s; m/s for a cart].
+        q (Float[Array, "nq"]): coordinates [rad; m for a cart].
+        qd (Float[Array, "nv"]): velocities [rad/s; m/s for a cart].
         t (Int[Array, ""]): control steps into the episode.
+        action (Float[Array, "m"] | None): the last action, for a task that observes it (``TaskState.action``: the
+            Ant and the Humanoid); None for the others.
     """
 
     q: jax.Array
     qd: jax.Array
     t: jax.Array
+    action: jax.Array | None = None
 
 
 class BraxEnv(Env):
@@ -96,7 +99,7 @@ class BraxEnv(Env):
                              f"jax.vmap the reset over a batch of keys")
         s = self.task.reset(rng)
         zero = jnp.zeros((), self._dtype)
-        ps = PipelineState(s.q, s.qd, jnp.zeros((), jnp.int32))
+        ps = PipelineState(s.q, s.qd, jnp.zeros((), jnp.int32), s.action)
         return State(ps, self.task.observe(s).astype(self._dtype), zero, zero, {}, {})
 
     def step(self, state: State, action: jax.Array) -> State:
@@ -111,7 +114,7 @@ class BraxEnv(Env):
             TypeError: for a boolean or complex action.
         """
         ps = state.pipeline_state
-        s = TaskState(ps.q, ps.qd)
+        s = TaskState(ps.q, ps.qd, ps.action)
         if jnp.shape(action) != (self.action_size,):
             raise ValueError(f"BraxEnv.step: action must have shape (action_size,) = ({self.action_size},), got "
                              f"{jnp.shape(action)}; jax.vmap the step (Brax's VmapWrapper) over a batch")
@@ -129,7 +132,7 @@ class BraxEnv(Env):
         else:
             done = ended.astype(self._dtype) if can_end else jnp.zeros((), self._dtype)
         obs = self.task.observe(s2).astype(self._dtype)
-        return state.replace(pipeline_state=PipelineState(s2.q, s2.qd, t), obs=obs, reward=reward, done=done)
+        return state.replace(pipeline_state=PipelineState(s2.q, s2.qd, t, s2.action), obs=obs, reward=reward, done=done)
 
     @property
     def observation_size(self) -> int:

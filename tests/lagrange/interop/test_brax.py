@@ -4,6 +4,8 @@ namespace on exit. (That importing the adapters changes no other module is in te
 
 from __future__ import annotations
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -22,6 +24,38 @@ def _task_rollout(task, key, actions):
         obs.append(task.observe(s2))
         s = s2
     return jnp.stack(obs), jnp.stack(rew)
+
+
+def test_brax_env_carries_the_last_action_of_a_task_that_observes_it():
+    """The Ant observes the last action (``TaskState.action``): through the adapter its observations and rewards are
+    the task's own, step for step (the adapter once dropped the action and the Ant's first step raised). One substep
+    per control step: the adapter is what is tested, and the program compiles in a fraction of the time."""
+    from lagrange.interop.brax import BraxEnv
+    from lagrange.tasks import Ant
+
+    task = dataclasses.replace(Ant.diffrl(), substeps=1)
+    env = BraxEnv(task)
+    key = jax.random.PRNGKey(2)
+    actions = jax.random.uniform(jax.random.PRNGKey(3), (3, task.action_size), minval=-1.0, maxval=1.0)
+
+    @jax.jit
+    def both(key, actions):
+        def ours(s, a):
+            s2 = task.step(s, a)
+            return s2, (task.observe(s2), task.reward(s, a, s2))
+
+        def brax(s, a):
+            s = env.step(s, a)
+            return s, (s.obs, s.reward, s.pipeline_state.action)
+
+        return jax.lax.scan(ours, task.reset(key), actions)[1], jax.lax.scan(brax, env.reset(key), actions)[1]
+
+    (want_obs, want_rew), (obs, rew, last) = both(key, actions)
+    np.testing.assert_array_equal(np.asarray(last), np.asarray(actions))  # in [-1, 1]: nothing clipped
+    np.testing.assert_allclose(np.asarray(obs), np.asarray(want_obs), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(np.asarray(rew), np.asarray(want_rew), rtol=1e-12, atol=1e-12)
+    assert jax.eval_shape(env.reset, key).pipeline_state.action.shape == (task.action_size,)
+    assert jax.eval_shape(BraxEnv(Cartpole.rods()).reset, key).pipeline_state.action is None  # it observes none
 
 
 def test_brax_training_compat_installs_the_removed_jax_names_for_its_duration_only(monkeypatch):
