@@ -2,6 +2,7 @@
 
     python -m benchmarks.locomotion --tasks cheetah --algos ppo --seeds 0   # train what is missing, then table+plots
     python -m benchmarks.locomotion --plot-only                            # table and plots from the saved runs
+    python -m benchmarks.locomotion --tasks ant --algos ppo --ppo-steps 16384000   # a smaller PPO budget
 
 Every algorithm trains on the same task objects (``Hopper.diffrl()``, ``Cheetah.diffrl()``, ``Ant.diffrl()``,
 ``Humanoid.diffrl()``; Brax PPO sees them through
@@ -84,8 +85,9 @@ def run_differentiable(algo, task, seed, runs_dir):
             "wall_clock": r["wall_clock_s"], "curve": curve, "config": r["config"]}
 
 
-def run_ppo(task_name, seed):
-    """Brax PPO on the task through the Brax adapter; returns the run record."""
+def run_ppo(task_name, seed, steps=None):
+    """Brax PPO on the task through the Brax adapter for ``steps`` env steps (default ``PPO_STEPS``); returns the
+    run record."""
     from brax.training.agents.ppo import networks as ppo_networks
     from brax.training.agents.ppo.train import train as ppo_train
     from flax import linen
@@ -97,6 +99,7 @@ def run_ppo(task_name, seed):
     hidden = settings.pop("hidden", (128, 64, 32))
     nets = functools.partial(ppo_networks.make_ppo_networks, policy_hidden_layer_sizes=hidden,
                              value_hidden_layer_sizes=hidden, activation=linen.elu)
+    steps = steps or PPO_STEPS[task_name]
     curve, t0 = [], time.perf_counter()
 
     def progress(step, metrics):
@@ -105,7 +108,7 @@ def run_ppo(task_name, seed):
               f"return {curve[-1][2]:.0f}", flush=True)
 
     with brax_training_compat():
-        make_policy, params, _ = ppo_train(environment=BraxEnv(task), num_timesteps=PPO_STEPS[task_name],
+        make_policy, params, _ = ppo_train(environment=BraxEnv(task), num_timesteps=steps,
                                            episode_length=task.horizon, seed=seed, deterministic_eval=True,
                                            num_eval_envs=EVAL_EPISODES, network_factory=nets, progress_fn=progress,
                                            **settings)
@@ -115,13 +118,13 @@ def run_ppo(task_name, seed):
         jax.random.PRNGKey(10_000 + seed)))
     return {"return": float(np.mean(rets)), "return_std": float(np.std(rets)), "env_steps": curve[-1][0],
             "wall_clock": wall, "curve": curve, "config": {**settings, "hidden": hidden,
-                                                            "num_timesteps": PPO_STEPS[task_name]}}
+                                                            "num_timesteps": steps}}
 
 
-def train_one(algo, task, seed, runs_dir):
+def train_one(algo, task, seed, runs_dir, ppo_steps=None):
     """Train (or resume) one run and write its record ``runs_dir/<algo>_<task>_<seed>.json``."""
     load0, cpu0 = os.getloadavg(), time.process_time()
-    r = run_ppo(task, seed) if algo == "ppo" else run_differentiable(algo, task, seed, runs_dir)
+    r = run_ppo(task, seed, ppo_steps) if algo == "ppo" else run_differentiable(algo, task, seed, runs_dir)
     record = {"algo": algo, "task": task, "seed": seed, **r, "cpu_seconds": time.process_time() - cpu0,
               "loadavg_start": list(load0), "loadavg_end": list(os.getloadavg())}
     write_json(run_file(runs_dir, algo, task, seed), record)
@@ -192,7 +195,11 @@ def main(argv=None):
     p.add_argument("--seeds", nargs="+", type=int, default=[0])
     p.add_argument("--runs-dir", default="runs/locomotion", help="per-run folders and records")
     p.add_argument("--plot-only", action="store_true", help="only the table and plots from the saved runs")
+    p.add_argument("--ppo-steps", type=int, default=None,
+                   help="Brax PPO's env steps (default: 10x SHAC's, the hopper's 1x; see PPO_STEPS)")
     args = p.parse_args(argv)
+    if args.ppo_steps is not None and args.ppo_steps < 1:
+        p.error(f"--ppo-steps must be >= 1, got {args.ppo_steps}")
     results = ROOT / "benchmarks" / "results"
     if args.plot_only:
         restore_runs(args.runs_dir, results / "locomotion.json",
@@ -202,7 +209,7 @@ def main(argv=None):
             for algo in args.algos:
                 for seed in args.seeds:
                     if not run_file(args.runs_dir, algo, task, seed).exists():
-                        train_one(algo, task, seed, args.runs_dir)
+                        train_one(algo, task, seed, args.runs_dir, args.ppo_steps)
     runs = load_runs(args.runs_dir)
     write_table(runs, results)
     for task, algos in runs.items():
