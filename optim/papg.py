@@ -78,14 +78,8 @@ class PAPGState(NamedTuple):
 
 
 def make_trainer(config: PAPGConfig, task: AbstractTask, policy, *, objective: Callable | None = None) -> Trainer:
-    """PAPG on ``task``; each run starts from ``policy.reinit(k)`` for its own key ``k``.
-
-    Args:
-        config: the settings.
-        task: the task to train on, and the one the trainer evaluates.
-        policy: the policy module, its architecture (the algorithm draws the initial weights from the run's key).
-        objective: the loss of a batch of episodes each APG step minimises (default :func:`optim.mean_return_loss`,
-            minus the mean return).
+    """PAPG on ``task``; each run starts from ``policy.reinit(k)`` for its own key ``k``. The arguments are those of
+    :func:`optim.apg.make_trainer` (``config`` a :class:`PAPGConfig`).
 
     Returns:
         The :class:`optim.Trainer`; its metrics: ``best_return``, ``mean_return`` (of the finite runs), ``nonfinite``

@@ -139,16 +139,8 @@ class Actor(AbstractPolicy):
         hidden: Float[Array, " 0"],
         reset: Bool[ArrayLike, ""] = False,
     ) -> tuple[Float[Array, " action_size"], Float[Array, " 0"]]:
-        """One step of the actor as a rollout policy: the evaluation action.
-
-        Args:
-            obs: the normalised observation, shape ``(obs_size,)``.
-            hidden: the empty hidden state, shape ``(0,)``, returned unchanged.
-            reset: unused (the actor has no state); accepted for the common interface.
-
-        Returns:
-            ``(deterministic(obs), hidden)``.
-        """
+        """One step of the actor as a rollout policy (:meth:`AbstractPolicy.__call__`): ``(deterministic(obs),
+        hidden)``, the empty hidden state (shape ``(0,)``) unchanged and ``reset`` unused."""
         return self.deterministic(obs), hidden
 
 

@@ -68,17 +68,8 @@ class GRUPolicy(AbstractPolicy):
         hidden: Float[Array, " obs_size"],
         reset: Bool[ArrayLike, ""] = False,
     ) -> tuple[Float[Array, " action_size"], Float[Array, " obs_size"]]:
-        """One step of the policy (unbatched; ``jax.vmap`` it over environments).
-
-        Args:
-            obs: the (normalised) observation, shape ``(obs_size,)``.
-            hidden: the hidden state carried from the previous step, shape ``(obs_size,)``.
-            reset: scalar; if true (an episode starts), ``hidden`` is replaced by zeros first.
-
-        Returns:
-            ``(action, hidden)``: the action in ``[-1, 1]``, shape ``(action_size,)`` (dimensionless),
-            and the new hidden state, shape ``(obs_size,)``.
-        """
+        """One step of the policy, as :meth:`AbstractPolicy.__call__` (unbatched; ``jax.vmap`` it over environments);
+        the hidden state has shape ``(obs_size,)`` and a true ``reset`` zeroes it first."""
         hidden = jnp.where(reset, jnp.zeros_like(hidden), hidden)
         x = jax.nn.relu(self.embed(obs))
         hidden = self.cell(x, hidden)

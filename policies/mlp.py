@@ -59,15 +59,6 @@ class MLPPolicy(AbstractPolicy):
         hidden: Float[Array, " 0"],
         reset: Bool[ArrayLike, ""] = False,
     ) -> tuple[Float[Array, " action_size"], Float[Array, " 0"]]:
-        """One step of the policy (unbatched; ``jax.vmap`` it over environments).
-
-        Args:
-            obs: the (normalised) observation, shape ``(obs_size,)``.
-            hidden: the empty hidden state, shape ``(0,)``, returned unchanged.
-            reset: unused (the policy has no state); accepted for the common interface.
-
-        Returns:
-            ``(action, hidden)``: the action in ``[-1, 1]``, shape ``(action_size,)`` (dimensionless),
-            and ``hidden`` unchanged.
-        """
+        """One step of the policy, as :meth:`AbstractPolicy.__call__` (unbatched; ``jax.vmap`` it over environments):
+        ``(mlp(obs), hidden)``, the empty hidden state (shape ``(0,)``) unchanged and ``reset`` unused."""
         return self.mlp(obs), hidden

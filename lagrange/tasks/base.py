@@ -98,7 +98,8 @@ class AbstractTask(eqx.Module):
 
     @abc.abstractmethod
     def reward(self, state: TaskState, action: Float[ArrayLike, " m"], next_state: TaskState) -> Float[Array, ""]:
-        """The reward of a transition ``state --action--> next_state``, a scalar.
+        """The reward of a transition ``state --action--> next_state``, a scalar (each task's docstring gives its
+        formula; the arguments are these).
 
         Args:
             state: the state before.

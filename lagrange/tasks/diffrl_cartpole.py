@@ -139,13 +139,7 @@ class DiffRLCartpole(AbstractPoleTask):
         return jnp.concatenate([state.q[:1], state.qd[:1], jnp.sin(th), jnp.cos(th), state.qd[1:]])
 
     def reward(self, state: TaskState, action: Float[ArrayLike, " 1"], next_state: TaskState) -> Float[Array, ""]:
-        """``-(th^2 + 0.1 dth^2 + 0.05 x^2 + 0.1 dx^2)`` of ``next_state`` (the authors' weights).
-
-        Args:
-            state: the state before (unused).
-            action: the action (unused).
-            next_state: the state the reward is of.
-        """
+        """``-(th^2 + 0.1 dth^2 + 0.05 x^2 + 0.1 dx^2)`` of ``next_state`` (the authors' weights)."""
         del state, action
         check_state(self, next_state, "reward")
         q, qd = next_state.q, next_state.qd

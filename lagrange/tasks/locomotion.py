@@ -271,13 +271,7 @@ class Hopper(AbstractLocomotion):
         return cls(hopper_chain(), **overrides)
 
     def reward(self, state: TaskState, action: Float[ArrayLike, " 3"], next_state: TaskState) -> Float[Array, ""]:
-        """DFlex's hopper reward of the state the step lands in (see the table).
-
-        Args:
-            state: the state before (unused).
-            action: the action, shape ``(3,)``.
-            next_state: the state after.
-        """
+        """DFlex's hopper reward of the state the step lands in (see the table)."""
         q, qd = next_state.q, next_state.qd
         h = jnp.clip(q[1] - (self.termination_height + 0.15), -1.0, 0.3)
         height = jnp.where(h < 0.0, -200.0 * h * h, h)
@@ -339,13 +333,7 @@ class Cheetah(AbstractLocomotion):
         return cls(cheetah_chain(), **overrides)
 
     def reward(self, state: TaskState, action: Float[ArrayLike, " 6"], next_state: TaskState) -> Float[Array, ""]:
-        """``qd[0] - 0.1 |a|^2`` of the state the step lands in.
-
-        Args:
-            state: the state before (unused).
-            action: the action, shape ``(6,)``.
-            next_state: the state after.
-        """
+        """``qd[0] - 0.1 |a|^2`` of the state the step lands in."""
         return next_state.qd[0] - self._action_cost(action)
 
     def succeeded(self, q: Float[ArrayLike, "*batch T n"]) -> Bool[Array, " *batch"]:

@@ -175,13 +175,7 @@ class AbstractLocomotion3D(AbstractTask):
 
     def reward(self, state: TaskState, action: Float[ArrayLike, " m"], next_state: TaskState) -> Float[Array, ""]:
         """DFlex's reward of the state the step lands in: ``v_x + 0.1 up_z + heading + height_reward(height) -
-        action_cost |a|^2`` (each task's table).
-
-        Args:
-            state: the state before (unused).
-            action: the action, shape ``(m,)``, clipped to [-1, 1] here.
-            next_state: the state after.
-        """
+        action_cost |a|^2`` (each task's table), the action clipped to [-1, 1] here."""
         obs = self.observe(next_state)
         nj = self.chain.nq - 7
         a = jnp.clip(action, -1.0, 1.0)

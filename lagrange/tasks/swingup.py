@@ -232,13 +232,7 @@ class Acrobot(AbstractPaperSwingup):
         check_joints(self, ("revolute", "revolute"))
 
     def reward(self, state: TaskState, action: Float[ArrayLike, " m"], next_state: TaskState) -> Float[Array, ""]:
-        """``10 - (th1^2 + th2^2) - 0.01 (dth1^2 + dth2^2)`` of ``next_state``.
-
-        Args:
-            state: the state before (unused).
-            action: the action (unused).
-            next_state: the state the reward is of.
-        """
+        """``10 - (th1^2 + th2^2) - 0.01 (dth1^2 + dth2^2)`` of ``next_state``."""
         del state, action
         return _upright_reward(self, next_state)
 
@@ -276,13 +270,7 @@ class Cartpole(AbstractPaperSwingup):
         check_joints(self, ("prismatic", "revolute"))
 
     def reward(self, state: TaskState, action: Float[ArrayLike, " m"], next_state: TaskState) -> Float[Array, ""]:
-        """``-th^2`` of ``next_state``.
-
-        Args:
-            state: the state before (unused).
-            action: the action (unused).
-            next_state: the state the reward is of.
-        """
+        """``-th^2`` of ``next_state``."""
         del state, action
         th = self.angles(next_state)
         return -jnp.sum(th**2)
@@ -321,13 +309,7 @@ class DoubleCartpole(AbstractPaperSwingup):
         check_joints(self, ("prismatic", "revolute", "revolute"))
 
     def reward(self, state: TaskState, action: Float[ArrayLike, " m"], next_state: TaskState) -> Float[Array, ""]:
-        """``10 - (th1^2 + th2^2 + x^2) - 0.01 (dth1^2 + dth2^2)`` of ``next_state``.
-
-        Args:
-            state: the state before (unused).
-            action: the action (unused).
-            next_state: the state the reward is of.
-        """
+        """``10 - (th1^2 + th2^2 + x^2) - 0.01 (dth1^2 + dth2^2)`` of ``next_state``."""
         del state, action
         return _upright_reward(self, next_state) - next_state.q[0] ** 2
 
@@ -369,13 +351,7 @@ class ChainSwingup(AbstractSwingup):
             raise ValueError("ChainSwingup needs an actuated chain (some link with a gear), got chain.m=0")
 
     def reward(self, state: TaskState, action: Float[ArrayLike, " m"], next_state: TaskState) -> Float[Array, ""]:
-        """``10 - sum th_i^2 - 0.01 sum dth_i^2`` of ``next_state``.
-
-        Args:
-            state: the state before (unused).
-            action: the action (unused).
-            next_state: the state the reward is of.
-        """
+        """``10 - sum th_i^2 - 0.01 sum dth_i^2`` of ``next_state``."""
         del state, action
         return _upright_reward(self, next_state)
 

@@ -101,10 +101,7 @@ class SHACConfig(AlgorithmConfig):
     def hopper(cls, **overrides) -> "SHACConfig":
         """The authors' hopper config (``examples/cfg/shac/hopper.yaml``): 256 envs, 2000 epochs (16.4M env steps),
         actor lr 2e-3, critic lr 2e-4; the rest as the defaults. The actor is ``policies.Actor.for_task(task,
-        units=(128, 64, 32))``.
-
-        Args:
-            overrides: fields to replace.
+        units=(128, 64, 32))``. ``overrides`` replace fields.
         """
         return dataclasses.replace(cls(num_envs=256, iterations=2000, actor_lr=2e-3, critic_lr=2e-4), **overrides)
 
@@ -112,10 +109,7 @@ class SHACConfig(AlgorithmConfig):
     def cheetah(cls, **overrides) -> "SHACConfig":
         """The authors' cheetah config (``examples/cfg/shac/cheetah.yaml``): 64 envs, 2000 epochs (4.1M env steps),
         actor and critic lr 2e-3; the rest as the defaults. The actor is ``policies.Actor.for_task(task,
-        units=(128, 64, 32))``.
-
-        Args:
-            overrides: fields to replace.
+        units=(128, 64, 32))``. ``overrides`` replace fields.
         """
         return dataclasses.replace(cls(num_envs=64, iterations=2000, actor_lr=2e-3, critic_lr=2e-3), **overrides)
 
@@ -123,10 +117,7 @@ class SHACConfig(AlgorithmConfig):
     def ant(cls, **overrides) -> "SHACConfig":
         """The authors' ant config (``examples/cfg/shac/ant.yaml``): 64 envs, 2000 epochs (4.1M env steps), actor and
         critic lr 2e-3, target alpha 0.2; the rest as the defaults (the cheetah's settings). The actor is
-        ``policies.Actor.for_task(task, units=(128, 64, 32))``.
-
-        Args:
-            overrides: fields to replace.
+        ``policies.Actor.for_task(task, units=(128, 64, 32))``. ``overrides`` replace fields.
         """
         return dataclasses.replace(cls(num_envs=64, iterations=2000, actor_lr=2e-3, critic_lr=2e-3), **overrides)
 
@@ -134,10 +125,7 @@ class SHACConfig(AlgorithmConfig):
     def humanoid(cls, **overrides) -> "SHACConfig":
         """The authors' humanoid config (``examples/cfg/shac/humanoid.yaml``): 64 envs, 2000 epochs (4.1M env
         steps), actor lr 2e-3, critic lr 5e-4, target alpha 0.995, critic (128, 128); the rest as the defaults. The
-        actor is ``policies.Actor.for_task(task, units=(256, 128))``.
-
-        Args:
-            overrides: fields to replace.
+        actor is ``policies.Actor.for_task(task, units=(256, 128))``. ``overrides`` replace fields.
         """
         return dataclasses.replace(cls(num_envs=64, iterations=2000, actor_lr=2e-3, critic_lr=5e-4,
                                        target_alpha=0.995, critic_units=(128, 128)), **overrides)
