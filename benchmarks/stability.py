@@ -58,7 +58,7 @@ def _rollout(chain, q0, qd0, dt, solver, steps, substeps=1):
 def energy_drift(steps: int):
     systems = {"acrobot": lg.systems.acrobot(), "double_pendulum": lg.systems.n_link_pendulum(2)}
     configs = [(lg.Euler(), 1e-3), (lg.SemiImplicitEuler(), 1e-3), (lg.SemiImplicitEuler(), 1e-4),
-               (lg.SymplecticEuler(), 1e-3), (lg.SymplecticEuler(), 5e-4), (lg.RK4(), 1e-3), (lg.RK4(), 5e-4),
+               (lg.MomentumEuler(), 1e-3), (lg.MomentumEuler(), 5e-4), (lg.RK4(), 1e-3), (lg.RK4(), 5e-4),
                (lg.Tsit5(), 1e-3), (lg.Dopri5(), 1e-3), (lg.Dopri8(), 1e-3), (lg.Dopri8(), 1e-2)]
     q0, qd0 = jnp.array([2.0, 1.0]), jnp.zeros(2)
     rows = []

@@ -17,7 +17,7 @@ Each configuration is timed for a full 10 s rollout at batch 1 (median of repeat
 Errors: final-state error max |x(10) - x_ref(10)| over (q, qd), and final energy error
 |E(10) - E_ref(10)| / (E_ref(0) - V(0)).
 
-Engines: lagrange (Euler, SemiImplicitEuler, SymplecticEuler, RK4, Tsit5, Dopri5, Dopri8 with fixed steps swept;
+Engines: lagrange (Euler, SemiImplicitEuler, MomentumEuler, RK4, Tsit5, Dopri5, Dopri8 with fixed steps swept;
 Tsit5, Dopri5, Dopri8 with rtol = atol swept), Brax generalized (semi-implicit Euler, dt swept), MuJoCo C via
 ``mujoco.rollout`` with one thread per core (Euler, RK4, implicitfast, dt swept) and MJX (Euler, RK4; dt swept), the
 last three on the chain exported by ``lagrange.interop.mjcf.to_mjcf``.
@@ -148,7 +148,7 @@ def reference(chain, q0, qd0, us):
 
 def sweep(quick: bool):
     if quick:
-        k_lg = {"Euler": [16], "SemiImplicitEuler": [16], "SymplecticEuler": [16], "RK4": [2, 8, 32], "Tsit5": [8],
+        k_lg = {"Euler": [16], "SemiImplicitEuler": [16], "MomentumEuler": [16], "RK4": [2, 8, 32], "Tsit5": [8],
                 "Dopri5": [8], "Dopri8": [2, 8]}
         tols = {"Dopri5": [1e-6], "Dopri8": [1e-10], "Tsit5": []}
         k_brax, k_mj, k_mjx = [16], [2, 16], [16]
@@ -156,7 +156,7 @@ def sweep(quick: bool):
         mjx_integrators = ["Euler"]
     else:
         k_lg = {"Euler": [4, 16, 64, 256], "SemiImplicitEuler": [4, 16, 64, 256],
-                "SymplecticEuler": [4, 16, 64, 256], "RK4": [1, 2, 4, 8, 16, 32, 64],
+                "MomentumEuler": [4, 16, 64, 256], "RK4": [1, 2, 4, 8, 16, 32, 64],
                 "Tsit5": [1, 2, 4, 8, 16, 32], "Dopri5": [1, 2, 4, 8, 16, 32], "Dopri8": [1, 2, 4, 8, 16]}
         tols = {"Tsit5": [1e-4, 1e-6, 1e-8, 1e-10], "Dopri5": [1e-4, 1e-6, 1e-8, 1e-10, 1e-12],
                 "Dopri8": [1e-6, 1e-8, 1e-10, 1e-12]}

@@ -19,8 +19,8 @@ from lagrange.integrate import Trajectory, simulate, step
 from lagrange.batch import simulate_batch
 from lagrange.compile import compiler_options
 from lagrange.kinematics import com_positions, positions
-from lagrange.solvers import RK4, Dopri5, Dopri8, Euler, SemiImplicitEuler, SymplecticEuler, Tsit5
-from lagrange import systems
+from lagrange.solvers import RK4, Dopri5, Dopri8, Euler, MomentumEuler, SemiImplicitEuler, Tsit5
+from lagrange import solvers, systems
 
 __all__ = [
     "Ball",
@@ -35,7 +35,7 @@ __all__ = [
     "Dopri8",
     "Euler",
     "SemiImplicitEuler",
-    "SymplecticEuler",
+    "MomentumEuler",
     "Tsit5",
     "Trajectory",
     "compiler_options",
@@ -58,3 +58,8 @@ __all__ = [
     "mass_matrix",
     "positions",
 ]
+
+
+def __getattr__(name: str) -> type:
+    """The renamed solvers' old names (:data:`lagrange.solvers.RENAMED`), with a ``DeprecationWarning``."""
+    return solvers.renamed(name)

@@ -97,7 +97,7 @@ def to_array(M, like, symmetric: bool = False):
 
 def spd_solver(A):
     """``b -> A^-1 b`` for a (batch of) symmetric positive-definite array ``A`` of shape ``(*batch, n, n)``, factored
-    once by Cholesky (for solving with the same matrix several times, as :class:`lagrange.SymplecticEuler` does).
+    once by Cholesky (for solving with the same matrix several times, as :class:`lagrange.MomentumEuler` does).
 
     Args:
         A: shape ``(*batch, n, n)``.

@@ -29,7 +29,7 @@ from jaxtyping import Array, ArrayLike, Float
 from lagrange import spatial
 from lagrange.chain import Chain
 from lagrange.checks import check_parameters
-from lagrange.solvers import RK4, SemiImplicitEuler, SymplecticEuler, check_solver
+from lagrange.solvers import RK4, SemiImplicitEuler, MomentumEuler, check_solver
 from lagrange.stepping import interval_map
 from lagrange.tree import Tree
 
@@ -130,7 +130,7 @@ def simulate(
     controls: Float[ArrayLike, "T m"] | Callable[[Float[Array, ""], Float[Array, " n"], Float[Array, " n"]],
                                                  Float[ArrayLike, " m"]] | None,
     dt: float | Float[ArrayLike, ""],
-    solver: diffrax.AbstractSolver | SemiImplicitEuler | SymplecticEuler = RK4(),
+    solver: diffrax.AbstractSolver | SemiImplicitEuler | MomentumEuler = RK4(),
     substeps: int = 1,
     *,
     steps: int | None = None,
@@ -262,7 +262,7 @@ def step(
     qd: Float[ArrayLike, "*batch n"],
     u: Float[ArrayLike, "*batch m"] | None,
     dt: float | Float[ArrayLike, ""],
-    solver: diffrax.AbstractSolver | SemiImplicitEuler | SymplecticEuler = RK4(),
+    solver: diffrax.AbstractSolver | SemiImplicitEuler | MomentumEuler = RK4(),
     substeps: int = 1,
     *,
     adjoint: diffrax.AbstractAdjoint | None = None,

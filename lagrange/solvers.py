@@ -3,7 +3,7 @@
 - :class:`RK4` is the classic fourth-order Runge-Kutta method written as a diffrax Butcher
   tableau (a :class:`diffrax.AbstractERK`), so it runs inside ``diffrax.diffeqsolve`` too.
 - ``Euler``, ``Tsit5``, ``Dopri5`` and ``Dopri8`` are diffrax's own solvers, re-exported.
-- :class:`SymplecticEuler` is symplectic Euler in the canonical momenta: bounded energy error
+- :class:`MomentumEuler` is symplectic Euler in the canonical momenta: bounded energy error
   on any chain (implicit; a few fixed-point sweeps per step).
 - :class:`SemiImplicitEuler` is semi-implicit Euler for second-order systems,
   ``qd' = qd + h qdd(q, qd, u)``, ``q' = q + h qd'``, with joint damping treated implicitly
@@ -15,6 +15,7 @@ from their tableau, unrolled, with zero coefficients and unused stages dropped a
 
 from __future__ import annotations
 
+import warnings
 from typing import ClassVar
 
 import diffrax
@@ -78,8 +79,12 @@ class SemiImplicitEuler(eqx.Module):
         return 1
 
 
-class SymplecticEuler(eqx.Module):
+class MomentumEuler(eqx.Module):
     """Symplectic Euler in canonical momenta ``p = M(q) qd``; first order, fixed steps only.
+
+    Formerly ``SymplecticEuler``: textbooks give that name to :class:`SemiImplicitEuler`'s velocity form too, so the
+    name now says what differs, the momenta. ``lagrange.SymplecticEuler`` still gives this class, with a
+    ``DeprecationWarning``.
 
     The Hamiltonian ``H = 1/2 p^T M(q)^-1 p + V(q) - (B u)^T q`` (``u`` held over the step) is
     non-separable, so the scheme is implicit in the new momentum::
@@ -108,22 +113,22 @@ class SymplecticEuler(eqx.Module):
 
     def __check_init__(self):
         if isinstance(self.iterations, bool) or not isinstance(self.iterations, int) or self.iterations < 1:
-            raise ValueError(f"SymplecticEuler: iterations must be an int >= 1, got {self.iterations!r}")
+            raise ValueError(f"MomentumEuler: iterations must be an int >= 1, got {self.iterations!r}")
 
     def order(self, terms=None):
         return 1
 
 
-SOLVERS = (RK4, Euler, SemiImplicitEuler, SymplecticEuler, Tsit5, Dopri5, Dopri8)
+SOLVERS = (RK4, Euler, SemiImplicitEuler, MomentumEuler, Tsit5, Dopri5, Dopri8)
 """The solvers this library has been checked with (any explicit diffrax ERK also works)."""
 
 
-def order(solver: diffrax.AbstractSolver | SemiImplicitEuler | SymplecticEuler) -> int:
+def order(solver: diffrax.AbstractSolver | SemiImplicitEuler | MomentumEuler) -> int:
     """Classical order of accuracy of a solver."""
     return int(solver.order(None))
 
 
-def is_adaptive_capable(solver: diffrax.AbstractSolver | SemiImplicitEuler | SymplecticEuler) -> bool:
+def is_adaptive_capable(solver: diffrax.AbstractSolver | SemiImplicitEuler | MomentumEuler) -> bool:
     """Whether the solver has an embedded error estimate (so rtol/atol can be used)."""
     if not isinstance(solver, diffrax.AbstractERK):
         return False
@@ -132,7 +137,7 @@ def is_adaptive_capable(solver: diffrax.AbstractSolver | SemiImplicitEuler | Sym
 
 def check_solver(solver: object) -> None:
     """Raise a ``TypeError`` naming the allowed solvers unless ``solver`` is an instance of one of them."""
-    if isinstance(solver, (SemiImplicitEuler, SymplecticEuler, Euler, diffrax.AbstractERK)):
+    if isinstance(solver, (SemiImplicitEuler, MomentumEuler, Euler, diffrax.AbstractERK)):
         return
     if isinstance(solver, type):
         raise TypeError(
@@ -144,4 +149,26 @@ def check_solver(solver: object) -> None:
     )
 
 
-__all__ = ["RK4", "Euler", "SemiImplicitEuler", "SymplecticEuler", "Tsit5", "Dopri5", "Dopri8", "SOLVERS"]
+RENAMED = {"SymplecticEuler": "MomentumEuler"}
+"""Old public names of this module's solvers and their new names; the old ones still resolve, with a warning."""
+
+
+def renamed(name: str, module: str = "lagrange") -> type:
+    """The solver class an old name of :data:`RENAMED` stands for, with a ``DeprecationWarning`` attributed to the
+    code that looked the old name up (``lagrange.NAME`` or ``lagrange.solvers.NAME``).
+
+    Raises:
+        AttributeError: for a name that is not an old name.
+    """
+    if name not in RENAMED:
+        raise AttributeError(f"module {module!r} has no attribute {name!r}")
+    warnings.warn(f"lagrange.{name} is renamed lagrange.{RENAMED[name]} (the same solver); the old name will be "
+                  f"removed", DeprecationWarning, stacklevel=3)  # renamed <- the module's __getattr__ <- the caller
+    return globals()[RENAMED[name]]
+
+
+def __getattr__(name: str) -> type:
+    return renamed(name, __name__)
+
+
+__all__ = ["RK4", "Euler", "SemiImplicitEuler", "MomentumEuler", "Tsit5", "Dopri5", "Dopri8", "SOLVERS"]

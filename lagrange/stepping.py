@@ -3,9 +3,9 @@
 Fixed-step explicit Runge-Kutta solvers run from their diffrax Butcher tableau, unrolled, zero coefficients and unused
 stages dropped while tracing; a tree's coordinates move through its joints (quaternions by the exponential map: the
 stage and final coordinates from the step's start by the weighted velocity sum, MuJoCo's ``mj_RungeKutta``).
-Semi-implicit Euler is MuJoCo's, Brax's and DFlex's step; symplectic Euler runs on planar chains. Adaptive steps and
-diffrax adjoints run each interval through ``diffrax.diffeqsolve``. :func:`lagrange.simulate` and
-:func:`lagrange.step` check the arguments and call :func:`interval_map`.
+Semi-implicit Euler is MuJoCo's, Brax's and DFlex's step; symplectic Euler in momenta (MomentumEuler) runs on planar
+chains. Adaptive steps and diffrax adjoints run each interval through ``diffrax.diffeqsolve``. :func:`lagrange.simulate`
+and :func:`lagrange.step` check the arguments and call :func:`interval_map`.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from lagrange._linalg import spd_solver
 from lagrange.actuation import actuation_matrix, clamp_controls
 from lagrange.chain import Chain
 from lagrange.dynamics import bias_forces, energy, forward_dynamics, gravity_forces, mass_matrix
-from lagrange.solvers import SemiImplicitEuler, SymplecticEuler, is_adaptive_capable
+from lagrange.solvers import SemiImplicitEuler, MomentumEuler, is_adaptive_capable
 from lagrange.tree import Tree
 
 __all__ = ["interval_map"]
@@ -102,8 +102,8 @@ def _rkmk_step(tree, f, tableau, h, y):
     return spatial.integrate_positions(tree, q0, d, h), qd0 + h * dv
 
 
-def _symplectic_euler_step(chain: Chain, iterations: int, h, q, qd, u):
-    """One step of :class:`lagrange.SymplecticEuler` (see its docstring for the scheme)."""
+def _momentum_euler_step(chain: Chain, iterations: int, h, q, qd, u):
+    """One step of :class:`lagrange.MomentumEuler` (see its docstring for the scheme)."""
     M = mass_matrix(chain, q)
     p = jnp.einsum("...ij,...j->...i", M, qd)
     force = -gravity_forces(chain, q)
@@ -124,8 +124,8 @@ def _symplectic_euler_step(chain: Chain, iterations: int, h, q, qd, u):
 
 
 def _fixed_substep(chain: Chain, solver, h, q, qd, u):
-    if isinstance(solver, SymplecticEuler):
-        return _symplectic_euler_step(chain, solver.iterations, h, q, qd, u)
+    if isinstance(solver, MomentumEuler):
+        return _momentum_euler_step(chain, solver.iterations, h, q, qd, u)
     if isinstance(solver, SemiImplicitEuler):
         qdd = forward_dynamics(chain, q, qd, u, implicit_damping_dt=h if solver.implicit_damping else None,
                                check=False)
@@ -184,10 +184,10 @@ def interval_map(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps):
                 f"{type(solver).__name__} has no embedded error estimate, so rtol/atol cannot be used; "
                 "use Tsit5(), Dopri5() or Dopri8() for adaptive steps, or drop rtol/atol"
             )
-    if isinstance(chain, Tree) and isinstance(solver, SymplecticEuler):
-        raise NotImplementedError("SymplecticEuler runs on planar chains only (its canonical momenta assume nq = nv); "
+    if isinstance(chain, Tree) and isinstance(solver, MomentumEuler):
+        raise NotImplementedError("MomentumEuler runs on planar chains only (its canonical momenta assume nq = nv); "
                                   "use SemiImplicitEuler, RK4 or an adaptive solver for a lagrange.tree.Tree")
-    if isinstance(solver, (SemiImplicitEuler, SymplecticEuler)) and adjoint is not None:
+    if isinstance(solver, (SemiImplicitEuler, MomentumEuler)) and adjoint is not None:
         raise ValueError(f"{type(solver).__name__} runs outside diffeqsolve; pass adjoint=None")
     h = dt / substeps
 

@@ -23,13 +23,13 @@ from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
 from lagrange.chain import Chain
 from lagrange.integrate import step as _step
-from lagrange.solvers import SemiImplicitEuler, SymplecticEuler, check_solver
+from lagrange.solvers import SemiImplicitEuler, MomentumEuler, check_solver
 from lagrange.tree import Tree
 
 __all__ = ["TaskState", "AbstractTask", "TaskSolver", "control_step", "wrap",
            "check_schedule", "check_joints", "check_number", "check_state", "check_chain"]
 
-TaskSolver = diffrax.AbstractSolver | SemiImplicitEuler | SymplecticEuler
+TaskSolver = diffrax.AbstractSolver | SemiImplicitEuler | MomentumEuler
 """The solvers a task steps with (:mod:`lagrange.solvers`; any explicit diffrax Runge-Kutta solver)."""
 
 

@@ -25,7 +25,7 @@ from tests.helpers import states_equal
 
 
 ERK = [lg.RK4(), lg.Euler(), lg.Tsit5(), lg.Dopri5(), lg.Dopri8()]
-ALL = ERK + [lg.SemiImplicitEuler(), lg.SymplecticEuler()]
+ALL = ERK + [lg.SemiImplicitEuler(), lg.MomentumEuler()]
 
 
 def name(solver):
@@ -147,7 +147,7 @@ def test_energy_decreases_with_damping():
 ORDER_CASES = [
     (lg.Euler(), [256, 512, 1024, 2048]),
     (lg.SemiImplicitEuler(), [256, 512, 1024, 2048]),
-    (lg.SymplecticEuler(), [256, 512, 1024, 2048]),
+    (lg.MomentumEuler(), [256, 512, 1024, 2048]),
     (lg.RK4(), [32, 64, 128, 256]),
     (lg.Tsit5(), [16, 32, 64, 128]),
     (lg.Dopri5(), [32, 64, 128, 256]),
@@ -235,7 +235,7 @@ def _acrobot_problem():
     return chain, jnp.array([0.3, -0.2]), jnp.array([0.1, 0.4]), controls
 
 
-@pytest.mark.parametrize("solver", [lg.RK4(), lg.SemiImplicitEuler(), lg.SymplecticEuler()], ids=name)
+@pytest.mark.parametrize("solver", [lg.RK4(), lg.SemiImplicitEuler(), lg.MomentumEuler()], ids=name)
 def test_gradients_through_simulate(solver):
     """d(final state)/d(initial state, controls, link masses) against central differences
     (check_grads: step 1e-4, so truncation ~1e-8 and round-off ~1e-12 relative, well inside its
@@ -348,7 +348,7 @@ def test_semi_implicit_euler_is_one_mujoco_step():
     np.testing.assert_allclose(got[1], qd1, rtol=0, atol=1e-14)
 
 
-def test_symplectic_euler_is_semi_implicit_euler_where_m_is_constant():
+def test_momentum_euler_is_semi_implicit_euler_where_m_is_constant():
     """With a constant mass matrix dT/dq = 0, so symplectic Euler in momenta and the velocity-form
     semi-implicit Euler are the same step, damping included (both treat it implicitly): a damped
     pendulum and a two-stage prismatic chain, 200 steps, equal to round-off."""
@@ -360,13 +360,13 @@ def test_symplectic_euler_is_semi_implicit_euler_where_m_is_constant():
     for chain in chains:
         q0, qd0 = jnp.full(chain.n, 0.7), jnp.full(chain.n, -0.5)
         us = jnp.asarray(np.random.default_rng(0).uniform(-1, 1, (200, chain.m)))
-        a = lg.simulate(chain, q0, qd0, us, 0.01, lg.SymplecticEuler())
+        a = lg.simulate(chain, q0, qd0, us, 0.01, lg.MomentumEuler())
         b = lg.simulate(chain, q0, qd0, us, 0.01, lg.SemiImplicitEuler())
         np.testing.assert_allclose(a.q, b.q, rtol=0, atol=1e-12)
         np.testing.assert_allclose(a.qd, b.qd, rtol=0, atol=1e-12)
 
 
-def test_symplectic_euler_solves_its_implicit_equation():
+def test_momentum_euler_solves_its_implicit_equation():
     """The default sweeps solve ``(M + h D) v = M qd + h (B u - T + dT/dq(q, v))`` to round-off on
     64 random acrobot states with speeds ~ N(0, 10) rad/s at h = 1e-3 (measured residual ~1e-13
     rad/s against 40 sweeps; 4 sweeps leave ~1e-6), and the returned qd' is M(q')^-1 M(q) v."""
@@ -377,10 +377,10 @@ def test_symplectic_euler_solves_its_implicit_equation():
 
     @jax.jit  # one compiled program: op by op, the sweeps and the energy's gradient cost ~3x its compilation
     def library(q, qd, u):
-        q1, qd1 = lg.step(chain, q, qd, u, h, lg.SymplecticEuler())
+        q1, qd1 = lg.step(chain, q, qd, u, h, lg.MomentumEuler())
         v = (q1 - q) / h
         kin_grad = jax.vmap(jax.grad(lambda q, v: lg.energy(chain, q, v)[0]))(q, v)
-        loose = lg.step(chain, q, qd, u, h, lg.SymplecticEuler(iterations=4))[1]
+        loose = lg.step(chain, q, qd, u, h, lg.MomentumEuler(iterations=4))[1]
         return q1, qd1, v, kin_grad, lg.mass_matrix(chain, q), lg.mass_matrix(chain, q1), loose
 
     q1, qd1, v, kin_grad, M, M1, loose = library(q, qd, u)

@@ -1,6 +1,6 @@
 """The solvers (lagrange/solvers.py): RK4's Butcher tableau against the classical order conditions and, run through
 diffrax's own explicit Runge-Kutta step, against the classical RK4 formulas written by hand; the orders and adaptivity
-each solver reports; the refusal of anything that is not a solver, naming the allowed ones; and SymplecticEuler's
+each solver reports; the refusal of anything that is not a solver, naming the allowed ones; and MomentumEuler's
 check of its sweep count. Convergence orders measured on chains are in test_integrate.py and test_stability.py."""
 
 import diffrax
@@ -27,10 +27,10 @@ def test_not_a_solver(solver):
         lg.step(acrobot(), z, z, jnp.zeros(1), 0.01, solver)
 
 
-def test_symplectic_euler_rejects_bad_iterations():
+def test_momentum_euler_rejects_bad_iterations():
     for bad in (0, -1, 2.5, True):
         with pytest.raises(ValueError, match="iterations"):
-            lg.SymplecticEuler(iterations=bad)
+            lg.MomentumEuler(iterations=bad)
 
 
 # ------------------------------------------------------------------ RK4's tableau
@@ -103,7 +103,7 @@ def test_orders_and_adaptivity():
     """The classical orders (RK4 4, Euler 1, Tsit5 5, Dopri5 5, Dopri8 8, both symplectic Eulers 1) and which
     solvers carry an embedded error estimate (only those may take rtol/atol)."""
     want = {lg.RK4(): (4, False), lg.Euler(): (1, False), lg.Tsit5(): (5, True), lg.Dopri5(): (5, True),
-            lg.Dopri8(): (8, True), lg.SemiImplicitEuler(): (1, False), lg.SymplecticEuler(): (1, False)}
+            lg.Dopri8(): (8, True), lg.SemiImplicitEuler(): (1, False), lg.MomentumEuler(): (1, False)}
     assert {type(s) for s in want} == set(solvers.SOLVERS)
     for solver, (order, adaptive) in want.items():
         assert (solvers.order(solver), solvers.is_adaptive_capable(solver)) == (order, adaptive), solver
@@ -124,3 +124,17 @@ def test_unknown_solver_error_names_every_allowed_solver():
     for solver in (cls() for cls in solvers.SOLVERS):
         solvers.check_solver(solver)  # accepted: returns None
     solvers.check_solver(diffrax.Heun())  # any other explicit diffrax Runge-Kutta method
+
+
+def test_the_old_name_of_momentum_euler_still_works_with_a_warning():
+    """``SymplecticEuler`` was renamed ``MomentumEuler`` (textbooks call semi-implicit Euler symplectic Euler too):
+    the old name, from ``lagrange`` or ``lagrange.solvers``, gives the same class and warns at the caller's line; an
+    unknown name is still an AttributeError naming its module."""
+    for module in (lg, solvers):
+        with pytest.warns(DeprecationWarning, match="SymplecticEuler is renamed lagrange.MomentumEuler") as rec:
+            old = module.SymplecticEuler
+        assert old is lg.MomentumEuler and rec[0].filename == __file__
+    assert "SymplecticEuler" not in lg.__all__ and "MomentumEuler" in lg.__all__
+    for module, name in ((lg, "'lagrange'"), (solvers, "'lagrange.solvers'")):
+        with pytest.raises(AttributeError, match=f"module {name} has no attribute 'SymplecticEuIer'"):
+            module.SymplecticEuIer  # noqa: B018 (a capital I for the l: a typo)

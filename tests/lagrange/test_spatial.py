@@ -347,8 +347,8 @@ def test_bad_input_is_refused_by_name():
     tree = Tree([Body(1.0, (1, 1, 1), joints=[Ball()])])
     with pytest.raises(ValueError, match=r"q must have shape \(\.\.\., 4\)"):
         lg.mass_matrix(tree, jnp.zeros(3))
-    with pytest.raises(NotImplementedError, match="SymplecticEuler runs on planar chains only"):
-        lg.simulate(tree, jnp.array([1.0, 0, 0, 0]), jnp.zeros(3), None, 0.01, lg.SymplecticEuler(), steps=2)
+    with pytest.raises(NotImplementedError, match="MomentumEuler runs on planar chains only"):
+        lg.simulate(tree, jnp.array([1.0, 0, 0, 0]), jnp.zeros(3), None, 0.01, lg.MomentumEuler(), steps=2)
 
 
 @pytest.mark.parametrize("extra, error, match", [
