@@ -29,7 +29,7 @@ from jaxtyping import Array, ArrayLike, Float
 from lagrange import spatial
 from lagrange.chain import Chain
 from lagrange.checks import check_parameters
-from lagrange.solvers import RK4, SemiImplicitEuler, MomentumEuler, check_solver
+from lagrange.solvers import RK4, MomentumEuler, SemiImplicitEuler, check_solver
 from lagrange.stepping import interval_map
 from lagrange.tree import Tree
 

@@ -20,7 +20,7 @@ from lagrange._linalg import spd_solver
 from lagrange.actuation import actuation_matrix, clamp_controls
 from lagrange.chain import Chain
 from lagrange.dynamics import bias_forces, energy, forward_dynamics, gravity_forces, mass_matrix
-from lagrange.solvers import SemiImplicitEuler, MomentumEuler, is_adaptive_capable
+from lagrange.solvers import MomentumEuler, SemiImplicitEuler, is_adaptive_capable
 from lagrange.tree import Tree
 
 __all__ = ["interval_map"]

@@ -23,7 +23,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
 from lagrange.chain import Chain
 from lagrange.integrate import step as _step
-from lagrange.solvers import SemiImplicitEuler, MomentumEuler, check_solver
+from lagrange.solvers import MomentumEuler, SemiImplicitEuler, check_solver
 from lagrange.tree import Tree
 
 __all__ = ["TaskState", "AbstractTask", "TaskSolver", "control_step", "wrap",
