@@ -3,6 +3,7 @@
     python -m benchmarks.locomotion --tasks cheetah --algos ppo --seeds 0   # train what is missing, then table+plots
     python -m benchmarks.locomotion --plot-only                            # table and plots from the saved runs
     python -m benchmarks.locomotion --tasks ant --algos ppo --ppo-steps 16384000   # a smaller PPO budget
+    python -m benchmarks.locomotion --tasks ant --algos bptt --bptt-steps 8192000  # a smaller BPTT budget
 
 Every algorithm trains on the same task objects (``Hopper.diffrl()``, ``Cheetah.diffrl()``, ``Ant.diffrl()``,
 ``Humanoid.diffrl()``; Brax PPO sees them through
@@ -34,6 +35,7 @@ them. ``--plot-only`` restores the run files from the JSON on a fresh clone.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import functools
 import os
 import pathlib
@@ -70,14 +72,17 @@ EVAL_EPISODES = 16
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 
 
-def run_differentiable(algo, task, seed, runs_dir):
+def run_differentiable(algo, task, seed, runs_dir, steps=None):
     """SHAC or BPTT through the examples' driver in ``runs_dir/<algo>_<task>_<seed>/`` (resumed if a checkpoint is
-    there); returns the run record."""
+    there) for the config's epochs or, given ``steps``, as many epochs as reach that many env steps (the learning
+    rates then decay over those epochs); returns the run record."""
     out = os.path.join(runs_dir, f"{algo}_{task}_{seed}")
     argv = ["--seed", str(seed), "--out", out, "--no-progress"]
     if os.path.exists(os.path.join(out, "checkpoint.eqx")):
         argv.append("--resume")
     cfg = CONFIGS[algo][task]
+    if steps is not None:
+        cfg = dataclasses.replace(cfg, iterations=-(-steps // cfg.env_steps_per_epoch()))
     r = locomotion_main(f"{LABELS[algo]} on {task}", out, TASKS[task], cfg, cfg, argv=argv,
                         actor_units=ACTOR_UNITS.get(task, (128, 64, 32)))
     curve = [(c["env_steps"], c["elapsed"], c["return"]) for c in r["curve"]]
@@ -121,10 +126,14 @@ def run_ppo(task_name, seed, steps=None):
                                                             "num_timesteps": steps}}
 
 
-def train_one(algo, task, seed, runs_dir, ppo_steps=None):
-    """Train (or resume) one run and write its record ``runs_dir/<algo>_<task>_<seed>.json``."""
+def train_one(algo, task, seed, runs_dir, ppo_steps=None, bptt_steps=None):
+    """Train (or resume) one run and write its record ``runs_dir/<algo>_<task>_<seed>.json``; ``ppo_steps`` and
+    ``bptt_steps`` replace those algorithms' default budgets."""
     load0, cpu0 = os.getloadavg(), time.process_time()
-    r = run_ppo(task, seed, ppo_steps) if algo == "ppo" else run_differentiable(algo, task, seed, runs_dir)
+    if algo == "ppo":
+        r = run_ppo(task, seed, ppo_steps)
+    else:
+        r = run_differentiable(algo, task, seed, runs_dir, bptt_steps if algo == "bptt" else None)
     record = {"algo": algo, "task": task, "seed": seed, **r, "cpu_seconds": time.process_time() - cpu0,
               "loadavg_start": list(load0), "loadavg_end": list(os.getloadavg())}
     write_json(run_file(runs_dir, algo, task, seed), record)
@@ -197,9 +206,12 @@ def main(argv=None):
     p.add_argument("--plot-only", action="store_true", help="only the table and plots from the saved runs")
     p.add_argument("--ppo-steps", type=int, default=None,
                    help="Brax PPO's env steps (default: 10x SHAC's, the hopper's 1x; see PPO_STEPS)")
+    p.add_argument("--bptt-steps", type=int, default=None,
+                   help="BPTT's env steps, rounded up to whole epochs (default: the authors' 2000 epochs)")
     args = p.parse_args(argv)
-    if args.ppo_steps is not None and args.ppo_steps < 1:
-        p.error(f"--ppo-steps must be >= 1, got {args.ppo_steps}")
+    for flag in ("ppo_steps", "bptt_steps"):
+        if getattr(args, flag) is not None and getattr(args, flag) < 1:
+            p.error(f"--{flag.replace('_', '-')} must be >= 1, got {getattr(args, flag)}")
     results = ROOT / "benchmarks" / "results"
     if args.plot_only:
         restore_runs(args.runs_dir, results / "locomotion.json",
@@ -209,7 +221,7 @@ def main(argv=None):
             for algo in args.algos:
                 for seed in args.seeds:
                     if not run_file(args.runs_dir, algo, task, seed).exists():
-                        train_one(algo, task, seed, args.runs_dir, args.ppo_steps)
+                        train_one(algo, task, seed, args.runs_dir, args.ppo_steps, args.bptt_steps)
     runs = load_runs(args.runs_dir)
     write_table(runs, results)
     for task, algos in runs.items():
