@@ -1,8 +1,9 @@
-"""What an accelerator measures: the acrobot beside MJX and Brax, n-link pendulums, the legged models beside MJX,
-SHAC's hopper epoch and Table I's PPO at the paper's budget, in one process on whatever device JAX finds.
+"""What an accelerator measures: the acrobot beside MJX and Brax, n-link pendulums, the legged models beside MJX, 3-D
+trees beside MJX, SHAC's hopper epoch and Table I's PPO at the paper's budget, in one process on whatever device JAX
+finds.
 
     python -m benchmarks.gpu                          # every section (sized for <= 8 minutes on one H100/H200)
-    python -m benchmarks.gpu --sections acrobot legged
+    python -m benchmarks.gpu --sections acrobot legged trees3d
     python -m benchmarks.gpu --small                  # tiny sizes, one batch, the peers' forward only (a test runs it)
 
 Throughput (sections ``acrobot``, ``scaling``, ``legged``): for each engine one environment's rollout
@@ -11,10 +12,14 @@ of ``sum(q_T^2 + qd_T^2)`` with respect to the controls (acrobot) or the initial
 the median of ``REPEATS`` calls after the first, whose seconds are recorded too (compilation). Acrobot:
 ``lagrange.systems.acrobot()``, dt 0.01, ``T`` steps, float32 and float64, MJX and Brax generalized on the chain
 ``to_mjcf`` writes. Legged: Gymnasium's half-cheetah in free flight and hopper on the ground exactly as
-``benchmarks/throughput.py --legged-only`` builds them, float32. ``shac``: epochs of ``SHACConfig.hopper()`` on
-``Hopper.diffrl()`` (256 environments x 32 steps), seconds per epoch after the first. ``ppo``: Brax PPO with the
-CE-APG paper's appendix IX-C hyperparameters at its full budget (8e7 env steps) on ``DoubleCartpole.brax_v1()``,
-each final deterministic policy evaluated on the training benchmarks' 16 starts.
+``benchmarks/throughput.py --legged-only`` builds them, float32. ``trees3d``: spatial trees as
+``benchmarks/trees3d.py`` builds them, float32, semi-implicit Euler: dm_control's humanoid in free flight (27 dof)
+and Gymnasium's half-cheetah read as a 3-D ``Tree`` (the planar model without the planar path: no loop over its links,
+where ``legged``'s planar chain runs three), beside MJX on the same MuJoCo models; Gymnasium's ant on the ground with
+DFlex's laws at 1/960 s, beside MJX's own contact (``opt.iterations = 1``). ``shac``: epochs of
+``SHACConfig.hopper()`` on ``Hopper.diffrl()`` (256 environments x 32 steps), seconds per epoch after the first.
+``ppo``: Brax PPO with the CE-APG paper's appendix IX-C hyperparameters at its full budget (8e7 env steps) on
+``DoubleCartpole.brax_v1()``, each final deterministic policy evaluated on the training benchmarks' 16 starts.
 
 Needs nothing beyond the project, JAX, MuJoCo/MJX and Brax (no network). Writes
 ``benchmarks/results/gpu_<device>.json`` and ``.md`` (``--small``: ``runs/benchmarks/gpu_<device>_small.*``), after
@@ -46,18 +51,18 @@ from lagrange.interop.mjcf import from_mjcf
 from optim.checkpoint import write_json
 from oracles import closed_form as cf
 
-SECTIONS = ("acrobot", "scaling", "legged", "shac", "ppo")
+SECTIONS = ("acrobot", "scaling", "legged", "trees3d", "shac", "ppo")
 REPEATS = 5
 FULL = dict(
     acrobot_T=100, acrobot_batches=(1, 1024, 131_072, 1_048_576), acrobot_peer_batch=131_072,
     acrobot_f64_batches=(131_072, 1_048_576), scaling_batch=65_536, scaling_ns=(4, 16, 32), scaling_T=100,
-    legged_batches=(4096, 65_536), legged_T=20, shac_epochs=40, ppo_seeds=(0, 1, 2), ppo_steps=80_000_000,
-    ppo_evals=11,
+    legged_batches=(4096, 65_536), legged_T=20, trees3d_batches=(4096, 65_536), trees3d_T=20, shac_epochs=40,
+    ppo_seeds=(0, 1, 2), ppo_steps=80_000_000, ppo_evals=11,
 )
 SMALL = dict(
     acrobot_T=5, acrobot_batches=(8,), acrobot_peer_batch=8, acrobot_f64_batches=(8,), scaling_batch=8,
-    scaling_ns=(4,), scaling_T=5, legged_batches=(8,), legged_T=2, shac_epochs=2, ppo_seeds=(0,), ppo_steps=None,
-    ppo_evals=2,
+    scaling_ns=(4,), scaling_T=5, legged_batches=(8,), legged_T=2, trees3d_batches=(8,), trees3d_T=2, shac_epochs=2,
+    ppo_seeds=(0,), ppo_steps=None, ppo_evals=2,
 )
 # the CE-APG paper's appendix IX-C PPO at its budget (benchmarks/algorithms.py's PPO_HP and batch geometry)
 PPO_PAPER = dict(num_envs=512, batch_size=256, num_minibatches=32)
@@ -196,6 +201,51 @@ def legged_rows(s):
     return rows
 
 
+def _tree_pair(tree, dt):
+    """:func:`_lagrange`'s pair for a spatial tree, compiled with its per-program options (YNNPACK off on a CPU)."""
+    def rollout(q0, qd0, us):
+        tr = lg.simulate(tree, q0, qd0, us, dt, lg.SemiImplicitEuler(), check=False)
+        return tr.q[-1], tr.qd[-1]
+
+    return _jax_pair(rollout, (0, 1), compiler_options=lg.compiler_options(tree))
+
+
+def trees3d_rows(s):
+    import numpy as np
+
+    x64 = jax.config.jax_enable_x64
+    from benchmarks import trees3d  # its first import turns 64-bit mode on
+
+    jax.config.update("jax_enable_x64", x64)
+
+    rows, T = [], s["trees3d_T"]
+    rng = np.random.default_rng(0)
+    free = {"humanoid_free_flight": trees3d.MODELS["dm_control humanoid"](),
+            "half_cheetah_tree": gymnasium_model("half_cheetah")}
+    for name, path in free.items():
+        model, tree = trees3d.free_flight(path)
+        engines = {"lagrange_sie": _tree_pair(_cast(tree, jnp.float32), model.opt.timestep)}
+        if s is FULL:  # --small: lagrange only (MJX's 3-D compiles are long on a CPU; the other sections run MJX)
+            engines["mjx"] = _jax_pair(mjx_rollout(model, model.opt.timestep), (0, 1))
+        for B in s["trees3d_batches"]:
+            q0, qd0 = trees3d.states(model, rng, B)
+            args = _cast(tuple(jnp.asarray(x) for x in (q0, qd0, rng.uniform(-1, 1, (B, T, model.nu)))),
+                         jnp.float32)
+            for e, pair in engines.items():
+                rows += _rows("trees3d", e, pair, args, T, jnp.float32, model=name,
+                              gradient=s is FULL or name == "half_cheetah_tree")
+    for B in s["trees3d_batches"]:
+        model, tree, inputs = trees3d._ant_on_the_ground(B, T)
+        engines = {"lagrange_sie": _tree_pair(_cast(tree, jnp.float32), trees3d.DFLEX_ANT["dt"])}
+        if s is FULL:
+            model.opt.iterations = 1  # more: MJX's while_loop cannot be reverse-differentiated (mujoco#2259)
+            engines["mjx"] = _jax_pair(mjx_rollout(model, model.opt.timestep), (0, 1))
+        args = _cast(tuple(jnp.asarray(x) for x in inputs), jnp.float32)
+        for e, pair in engines.items():
+            rows += _rows("trees3d", e, pair, args, T, jnp.float32, model="ant_on_the_ground", gradient=s is FULL)
+    return rows
+
+
 def shac_rows(s):
     from lagrange.tasks import Hopper
     from optim import SHACConfig
@@ -237,11 +287,13 @@ def ppo_rows(s):
     return rows
 
 
-RUN = {"acrobot": acrobot_rows, "scaling": scaling_rows, "legged": legged_rows, "shac": shac_rows, "ppo": ppo_rows}
+RUN = {"acrobot": acrobot_rows, "scaling": scaling_rows, "legged": legged_rows, "trees3d": trees3d_rows,
+       "shac": shac_rows, "ppo": ppo_rows}
 COLUMNS = {
     "acrobot": ["engine", "kind", "batch", "dtype", "env_steps_per_s", "first_call_s"],
     "scaling": ["n", "kind", "batch", "env_steps_per_s", "first_call_s"],
     "legged": ["model", "engine", "kind", "batch", "env_steps_per_s", "first_call_s"],
+    "trees3d": ["model", "engine", "kind", "batch", "env_steps_per_s", "first_call_s"],
     "shac": ["task", "num_envs", "short_horizon", "epochs", "s_per_epoch", "first_epoch_s"],
     "ppo": ["task", "seed", "env_steps", "return", "balanced_fraction", "wall_clock"],
 }

@@ -50,16 +50,17 @@ JAX_ENGINES_MAX_N = 4  # MJX and Brax in the scaling sweep: MJX at n = 8 did not
 PINOCCHIO = importlib.util.find_spec("pinocchio") is not None  # the bench extra; without it, no Pinocchio columns
 
 
-def _jax_pair(rollout, argnums=2):
+def _jax_pair(rollout, argnums=2, compiler_options=None):
     """From one environment's ``rollout(q0, qd0, us) -> (q_T, qd_T)``, the jitted batched forward ``fwd(q0 (B, n),
     qd0 (B, n), us (B, T, m)) -> (q_T, qd_T)`` and gradient of ``sum(q_T^2 + qd_T^2)`` with respect to the controls
-    (or the arguments ``argnums``)."""
+    (or the arguments ``argnums``), both compiled with ``compiler_options``."""
 
     def loss(q0, qd0, us):
         q, qd = rollout(q0, qd0, us)
         return jnp.sum(q**2) + jnp.sum(qd**2)
 
-    return jax.jit(jax.vmap(rollout)), jax.jit(jax.vmap(jax.grad(loss, argnums=argnums)))
+    return (jax.jit(jax.vmap(rollout), compiler_options=compiler_options),
+            jax.jit(jax.vmap(jax.grad(loss, argnums=argnums)), compiler_options=compiler_options))
 
 
 def lagrange_engine(chain, solver, dt=DT, argnums=2):

@@ -19,7 +19,7 @@ def test_gpu_benchmark_runs_on_the_cpu_at_small_sizes(tmp_path):
     res = json.loads(out.read_text())
     info = res["info"]
     assert info["platform"] == "cpu" and info["versions"]["jax"] and info["versions"]["mujoco"] and res["small"]
-    assert list(res["section_s"]) == ["acrobot", "scaling", "legged", "shac", "ppo"]
+    assert list(res["section_s"]) == ["acrobot", "scaling", "legged", "trees3d", "shac", "ppo"]
     rows = res["rows"]
     seen = {(r["section"], r.get("engine"), r.get("kind"), r.get("dtype")) for r in rows}
     for engine in ("lagrange_sie", "lagrange_rk4", "closed_form_rk4"):
@@ -29,6 +29,9 @@ def test_gpu_benchmark_runs_on_the_cpu_at_small_sizes(tmp_path):
     assert ("acrobot", "lagrange_sie", "forward", "float64") in seen
     legged = {r["model"] for r in rows if r["section"] == "legged"}
     assert legged == {"half_cheetah_free_flight", "hopper_on_the_ground"}
+    trees = {(r["model"], r["kind"]) for r in rows if r["section"] == "trees3d"}
+    assert trees == {("humanoid_free_flight", "forward"), ("half_cheetah_tree", "forward"),
+                     ("half_cheetah_tree", "gradient"), ("ant_on_the_ground", "forward")}
     assert all(r["env_steps_per_s"] > 0 and r["first_call_s"] > 0 for r in rows if "env_steps_per_s" in r
                and r["section"] != "shac")
     shac = [r for r in rows if r["section"] == "shac"]
@@ -36,5 +39,5 @@ def test_gpu_benchmark_runs_on_the_cpu_at_small_sizes(tmp_path):
     assert len(shac) == 1 and shac[0]["s_per_epoch"] > 0 and shac[0]["epochs"] == 2
     assert len(ppo) == 1 and ppo[0]["env_steps"] > 0 and len(ppo[0]["returns"]) == 16
     table = out.with_suffix(".md").read_text()
-    for section in ("## acrobot", "## scaling", "## legged", "## shac", "## ppo"):
+    for section in ("## acrobot", "## scaling", "## legged", "## trees3d", "## shac", "## ppo"):
         assert section in table, section
