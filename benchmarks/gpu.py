@@ -110,11 +110,13 @@ def _inputs(n, m, B, T, dtype):
 
 
 def _lagrange(chain, solver, dt, argnums):
+    """The jitted forward and gradient of ``chain``'s rollout (a spatial tree's with its per-program compiler
+    options: YNNPACK off on a CPU)."""
     def rollout(q0, qd0, us):
         tr = lg.simulate(chain, q0, qd0, us, dt, solver, check=False)
         return tr.q[-1], tr.qd[-1]
 
-    return _jax_pair(rollout, argnums)
+    return _jax_pair(rollout, argnums, compiler_options=lg.compiler_options(chain))
 
 
 def _time(fn, args):
@@ -201,15 +203,6 @@ def legged_rows(s):
     return rows
 
 
-def _tree_pair(tree, dt):
-    """:func:`_lagrange`'s pair for a spatial tree, compiled with its per-program options (YNNPACK off on a CPU)."""
-    def rollout(q0, qd0, us):
-        tr = lg.simulate(tree, q0, qd0, us, dt, lg.SemiImplicitEuler(), check=False)
-        return tr.q[-1], tr.qd[-1]
-
-    return _jax_pair(rollout, (0, 1), compiler_options=lg.compiler_options(tree))
-
-
 def trees3d_rows(s):
     import numpy as np
 
@@ -224,7 +217,8 @@ def trees3d_rows(s):
             "half_cheetah_tree": gymnasium_model("half_cheetah")}
     for name, path in free.items():
         model, tree = trees3d.free_flight(path)
-        engines = {"lagrange_sie": _tree_pair(_cast(tree, jnp.float32), model.opt.timestep)}
+        engines = {"lagrange_sie": _lagrange(_cast(tree, jnp.float32), lg.SemiImplicitEuler(), model.opt.timestep,
+                                            (0, 1))}
         if s is FULL:  # --small: lagrange only (MJX's 3-D compiles are long on a CPU; the other sections run MJX)
             engines["mjx"] = _jax_pair(mjx_rollout(model, model.opt.timestep), (0, 1))
         for B in s["trees3d_batches"]:
@@ -236,7 +230,8 @@ def trees3d_rows(s):
                               gradient=s is FULL or name == "half_cheetah_tree")
     for B in s["trees3d_batches"]:
         model, tree, inputs = trees3d._ant_on_the_ground(B, T)
-        engines = {"lagrange_sie": _tree_pair(_cast(tree, jnp.float32), trees3d.DFLEX_ANT["dt"])}
+        engines = {"lagrange_sie": _lagrange(_cast(tree, jnp.float32), lg.SemiImplicitEuler(), trees3d.DFLEX_ANT["dt"],
+                                            (0, 1))}
         if s is FULL:
             model.opt.iterations = 1  # more: MJX's while_loop cannot be reverse-differentiated (mujoco#2259)
             engines["mjx"] = _jax_pair(mjx_rollout(model, model.opt.timestep), (0, 1))

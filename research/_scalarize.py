@@ -119,18 +119,6 @@ def to_obj(x):
     return out
 
 
-def movement(prim, params, operands):
-    """A pure data-movement primitive: apply it to index arrays and gather the elements."""
-    flat = np.concatenate([o.reshape(-1) for o in operands] + [np.array([0.0], dtype=object)])
-    idxs, off = [], 0
-    for o in operands:
-        idxs.append(np.arange(off, off + o.size, dtype=np.int64).reshape(o.shape))
-        off += o.size
-    with jax.ensure_compile_time_eval():
-        res = np.asarray(prim.bind(*[jnp.asarray(i) for i in idxs], **params))
-    return flat[np.asarray(res)]
-
-
 def linear_map(fn, operands):
     """A primitive linear in its operands: its 0/1 (or general) coefficient matrix, applied with folding."""
     sizes = [o.size for o in operands]
@@ -227,6 +215,16 @@ def convert(x, new_dtype, **_):
     return np.vectorize(c, otypes=[object])(x) if x.size else x.copy()
 
 
+def broadcast_map(f, operands):
+    """``f`` applied entry by entry to the operands broadcast against each other."""
+    shp = np.broadcast_shapes(*[o.shape for o in operands])
+    operands = [np.broadcast_to(o, shp) for o in operands]
+    out = np.empty(shp, dtype=object)
+    for idx in np.ndindex(*shp):
+        out[idx] = f(*[o[idx] for o in operands])
+    return out
+
+
 def eval_jaxpr(jaxpr, consts, *args):
     env = {}
 
@@ -243,13 +241,7 @@ def eval_jaxpr(jaxpr, consts, *args):
         ins = [read(v) for v in eqn.invars]
         name, p = eqn.primitive.name, eqn.params
         if name in ELEMENTWISE:
-            f = ELEMENTWISE[name]
-            shp = np.broadcast_shapes(*[i.shape for i in ins])
-            ins = [np.broadcast_to(i, shp) for i in ins]
-            out = np.empty(shp, dtype=object)
-            for idx in np.ndindex(*shp):
-                out[idx] = f(*[i[idx] for i in ins])
-            outs = [out]
+            outs = [broadcast_map(ELEMENTWISE[name], ins)]
         elif name == "integer_pow":
             y = p["y"]
             def ip(a):
@@ -259,14 +251,9 @@ def eval_jaxpr(jaxpr, consts, *args):
                 return div(1.0, r) if y < 0 else r
             outs = [np.vectorize(ip, otypes=[object])(ins[0])]
         elif name == "select_n":
-            shp = np.broadcast_shapes(*[i.shape for i in ins])
-            ins = [np.broadcast_to(i, shp) for i in ins]
-            out = np.empty(shp, dtype=object)
-            for idx in np.ndindex(*shp):
-                out[idx] = select(*[i[idx] for i in ins])
-            outs = [out]
+            outs = [broadcast_map(select, ins)]
         elif name in MOVEMENT or name in ("stack",):
-            outs = [movement(eqn.primitive, p, ins)]
+            outs = [movement(lambda *a, prim=eqn.primitive, p=p: prim.bind(*a, **p), ins)]
         elif name == "convert_element_type":
             outs = [convert(ins[0], p["new_dtype"])]
         elif name == "iota":
@@ -278,11 +265,11 @@ def eval_jaxpr(jaxpr, consts, *args):
             if name == "gather":
                 idx = np.vectorize(lambda v: v, otypes=[np.int64])(ins[1]).astype(np.int64)
                 fn = lambda o: eqn.primitive.bind(o, jnp.asarray(idx), **p)  # noqa: E731
-                outs = [movement_fn(fn, [ins[0]])]
+                outs = [movement(fn, [ins[0]])]
             elif name == "scatter":
                 idx = np.vectorize(lambda v: v, otypes=[np.int64])(ins[1]).astype(np.int64)
                 fn = lambda o, u: eqn.primitive.bind(o, jnp.asarray(idx), u, **p)  # noqa: E731
-                outs = [movement_fn(fn, [ins[0], ins[2]])]
+                outs = [movement(fn, [ins[0], ins[2]])]
             elif name in ("scatter-add", "scatter_add"):
                 idx = np.vectorize(lambda v: v, otypes=[np.int64])(ins[1]).astype(np.int64)
                 fn = lambda o, u: eqn.primitive.bind(o, jnp.asarray(idx), u, **p)  # noqa: E731
@@ -290,11 +277,11 @@ def eval_jaxpr(jaxpr, consts, *args):
             elif name == "dynamic_slice":
                 starts = [int(i.item()) for i in ins[1:]]
                 fn = lambda o: lax.dynamic_slice(o, starts, p["slice_sizes"])  # noqa: E731
-                outs = [movement_fn(fn, [ins[0]])]
+                outs = [movement(fn, [ins[0]])]
             elif name == "pad":
                 pv = ins[1].item()
                 fn = lambda o: lax.pad(o, jnp.asarray(-1, o.dtype), p["padding_config"])  # noqa: E731
-                r = movement_fn(fn, [ins[0]], fill=pv)
+                r = movement(fn, [ins[0]], fill=pv)
                 outs = [r]
             else:
                 raise NotImplementedError(name)
@@ -339,7 +326,9 @@ def eval_jaxpr(jaxpr, consts, *args):
     return [read(v) for v in jaxpr.outvars]
 
 
-def movement_fn(fn, operands, fill=0.0):
+def movement(fn, operands, fill=0.0):
+    """A pure data movement ``fn`` of the operands: applied to their entries' indices, which then pick the entries
+    (an index of -1 picks ``fill``)."""
     flat = np.concatenate([o.reshape(-1) for o in operands] + [np.array([fill], dtype=object)])
     idxs, off = [], 0
     for o in operands:
