@@ -164,14 +164,14 @@ class Hinge(_AxisJoint):
 
     @classmethod
     def local(cls, joints, q):
-        axis, pos, ref = _stacked(joints)
+        axis, pos, ref = _stacked(joints, q.dtype)
         sn, c = sincos(q[..., 0] - ref)
         R = al.axis_rotation(axis, c, sn)
         return R, pos - al.matvec(R, pos)  # turned about the anchor
 
     @classmethod
     def subspace(cls, joints, R, p):
-        axis, pos, _ = _stacked(joints)
+        axis, pos, _ = _stacked(joints, R.dtype)
         a, anchor = al.matvec(R, axis), p + al.matvec(R, pos)  # the axis and the anchor do not move with the turn
         return jnp.concatenate([a, al.cross(anchor, a)], axis=-1)[..., None, :]
 
@@ -191,13 +191,13 @@ class Slide(_AxisJoint):
 
     @classmethod
     def local(cls, joints, q):
-        axis, _, ref = _stacked(joints)
+        axis, _, ref = _stacked(joints, q.dtype)
         R = jnp.broadcast_to(al.eye3(q.dtype), q.shape[:-1] + (3, 3))
         return R, (q[..., 0] - ref)[..., None] * axis
 
     @classmethod
     def subspace(cls, joints, R, p):
-        axis, _, _ = _stacked(joints)
+        axis, _, _ = _stacked(joints, R.dtype)
         a = al.matvec(R, axis)
         return jnp.concatenate([jnp.zeros_like(a), a], axis=-1)[..., None, :]
 
@@ -231,13 +231,13 @@ class Ball(AbstractJoint):
 
     @classmethod
     def local(cls, joints, q):
-        pos = _stack([j.pos for j in joints])
+        pos = _stack([j.pos for j in joints], q.dtype)
         R = al.quat_to_matrix(al.normalize_quat(q))
         return R, pos - al.matvec(R, pos)
 
     @classmethod
     def subspace(cls, joints, R, p):
-        anchor = p + al.matvec(R, _stack([j.pos for j in joints]))
+        anchor = p + al.matvec(R, _stack([j.pos for j in joints], R.dtype))
         axes = jnp.swapaxes(R, -1, -2)  # the body's axes in the world, one per row
         return jnp.concatenate([axes, al.cross(anchor[..., None, :], axes)], axis=-1)
 
@@ -302,16 +302,18 @@ class Free(AbstractJoint):
         return np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
 
 
-def _stack(values):
-    """Per-joint parameters stacked along a new first axis: in NumPy when every one is concrete (no JAX operation)."""
+def _stack(values, dtype):
+    """Per-joint parameters stacked along a new first axis in ``dtype`` (the coordinates', so that static float64
+    constants do not promote a float32 tree): in NumPy when every one is concrete (no JAX operation)."""
     if any(isinstance(v, jax.core.Tracer) for v in values):
-        return jnp.stack([jnp.asarray(v) for v in values])
-    return np.stack([np.asarray(v) for v in values])  # concrete: the arithmetic on it runs while tracing
+        return jnp.stack([jnp.asarray(v) for v in values]).astype(dtype)
+    return np.stack([np.asarray(v) for v in values]).astype(dtype)  # concrete: the arithmetic runs while tracing
 
 
-def _stacked(joints):
-    """``(axis, pos, ref)`` of hinges or slides, stacked: ``(n, 3)`` (static), ``(n, 3)``, ``(n,)``."""
-    return np.array([j.axis for j in joints]), _stack([j.pos for j in joints]), _stack([j.ref for j in joints])
+def _stacked(joints, dtype):
+    """``(axis, pos, ref)`` of hinges or slides, stacked in ``dtype``: ``(n, 3)`` (static), ``(n, 3)``, ``(n,)``."""
+    return (np.array([j.axis for j in joints], dtype), _stack([j.pos for j in joints], dtype),
+            _stack([j.ref for j in joints], dtype))
 
 
 JOINTS = (Hinge, Slide, Ball, Free)

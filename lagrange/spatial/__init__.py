@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 from lagrange import _spatial as al
 from lagrange.joints import Ball, Free
@@ -93,7 +92,7 @@ def forward_dynamics(tree: Tree, q, qd, u=None, implicit_damping_dt=None, *, piv
     M = crba(k)
     damping = per_dof(tree, "damping")
     if implicit_damping_dt is not None and damping is not None:
-        M = M + implicit_damping_dt * jnp.asarray(damping, M.dtype)[:, None] * np.eye(tree.nv)
+        M = M + jnp.diag(implicit_damping_dt * jnp.asarray(damping, M.dtype))
     L = jnp.linalg.cholesky(M)
     qdd = jax.scipy.linalg.cho_solve((L, True), rhs[..., None])[..., 0]
     if not pivots:

@@ -10,7 +10,6 @@ velocity first; zero elsewhere).
 from __future__ import annotations
 
 import jax.numpy as jnp
-import numpy as np
 
 from lagrange import _spatial as al
 from lagrange.spatial.forces import per_dof
@@ -38,5 +37,5 @@ def crba(k: Kinematics):
     M = jnp.where(above, G, 0.0) + jnp.where(above.T & ~above, jnp.swapaxes(G, -1, -2), 0.0)
     armature = per_dof(k.tree, "armature")
     if armature is not None:
-        M = M + jnp.asarray(armature, dtype)[:, None] * np.eye(len(armature))
+        M = M + jnp.diag(jnp.asarray(armature, dtype))
     return M

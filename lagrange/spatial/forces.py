@@ -37,11 +37,11 @@ def passive(tree: Tree, q, qd):
     out = None
     damping = per_dof(tree, "damping")
     if qd is not None and damping is not None:
-        out = -damping * qd
+        out = -jnp.asarray(damping, qd.dtype) * qd
     if q is not None:
         for link, j, d in _springs(tree, q):
             force = jnp.zeros(q.shape[:-1] + (tree.nv,), q.dtype)
-            force = force.at[..., tree.vadr[link]: tree.vadr[link] + j.nv].set(-j.stiffness * d)
+            force = force.at[..., tree.vadr[link]: tree.vadr[link] + j.nv].set(-jnp.asarray(j.stiffness, d.dtype) * d)
             out = force if out is None else out + force
     return out
 

@@ -184,7 +184,7 @@ class Kinematics:
 
     def joint_motion(self, x):
         """``S_i x_i`` per link for velocities or accelerations ``x`` (``(..., nv)``): ``(..., n, 6)``."""
-        E = (self.structure.dof_link[None, :] == np.arange(self.structure.n)[:, None]).astype(float)
+        E = (self.structure.dof_link[None, :] == np.arange(self.structure.n)[:, None]).astype(self.S.dtype)
         return _links_product(E, self.S * x[..., None])
 
     def project(self, f):
