@@ -218,12 +218,13 @@ def interval_map(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps):
     adj = adjoint if adjoint is not None else diffrax.RecursiveCheckpointAdjoint()
 
     def interval(q, qd, u):
+        t = jnp.result_type(q, qd)  # times in the state's dtype: float64 ones would promote a float32 state
         sol = diffrax.diffeqsolve(
             term,
             solver,
-            0.0,
-            dt,
-            h,
+            jnp.asarray(0.0, t),
+            jnp.asarray(dt, t),
+            jnp.asarray(h, t),
             (q, qd),
             args=u,
             stepsize_controller=controller,
