@@ -1,0 +1,64 @@
+"""``benchmarks/locomotion.py`` without training: a budget in env steps becomes whole epochs and a killed run resumes,
+the table and plots come from the run files, a fresh clone's runs are restored from the published JSON, and a bad
+budget is refused by name."""
+
+import json
+
+import pytest
+
+from benchmarks import locomotion
+from benchmarks._cli import restore_runs, run_file
+
+
+def _record(algo, task, seed, ret, curve):
+    return {"algo": algo, "task": task, "seed": seed, "return": ret, "return_std": 10.0, "env_steps": curve[-1][0],
+            "wall_clock": curve[-1][1], "curve": curve, "config": {}}
+
+
+def test_a_bptt_budget_is_whole_epochs_and_a_checkpoint_is_resumed(tmp_path, monkeypatch):
+    seen = {}
+
+    def fake_main(title, out, make_task, cfg, quick, argv, actor_units):
+        seen.update(title=title, iterations=cfg.iterations, argv=argv, units=actor_units)
+        return {"return": 1.0, "return_std": 0.0, "env_steps": 0.0, "wall_clock_s": 0.0, "config": {},
+                "curve": [{"env_steps": 0.0, "elapsed": 0.0, "return": 1.0}]}
+
+    monkeypatch.setattr(locomotion, "locomotion_main", fake_main)
+    locomotion.run_differentiable("bptt", "ant", 0, tmp_path, steps=32_001)  # 32 envs x 1000 steps per epoch
+    assert seen["iterations"] == 2 and "--resume" not in seen["argv"] and seen["title"] == "BPTT on ant"
+    (tmp_path / "bptt_humanoid_1").mkdir()
+    (tmp_path / "bptt_humanoid_1" / "checkpoint.eqx").write_bytes(b"")
+    locomotion.run_differentiable("bptt", "humanoid", 1, tmp_path)
+    assert seen["iterations"] == 2000 and "--resume" in seen["argv"] and seen["units"] == (256, 128)
+
+
+def test_the_table_and_plots_come_from_the_run_files_and_restore_on_a_fresh_clone(tmp_path):
+    runs_dir, out = tmp_path / "runs", tmp_path / "results"
+    runs_dir.mkdir(), out.mkdir()
+    records = [_record("shac", "ant", 0, 8000.0, [[0, 0, 100.0], [4.1e6, 1300.0, 8000.0]]),
+               _record("shac", "ant", 1, 8400.0, [[0, 0, 120.0], [2e6, 600.0, 8500.0], [4.1e6, 1200.0, 8400.0]]),
+               _record("ppo", "ant", 0, 1681.0, [[0, 0, 50.0], [1.7e7, 4330.0, 1681.0]])]
+    for r in records:
+        run_file(runs_dir, r["algo"], r["task"], r["seed"]).write_text(json.dumps(r))
+    runs = locomotion.load_runs(runs_dir)
+    assert list(runs) == ["ant"] and list(runs["ant"]) == ["shac", "ppo"]
+    locomotion.write_table(runs, out)
+    rows = json.loads((out / "locomotion.json").read_text())["rows"]
+    shac, ppo = rows
+    assert shac["return"] == "8200 +- 200" and shac["per seed"] == "8000, 8400" and shac["seeds"] == 2
+    assert shac["best evaluation on the way"] == "8000, 8500" and shac["published"] == "7660"
+    assert ppo["algorithm"] == "Brax PPO" and ppo["published"] == "6605" and ppo["env steps"] == "1.7e+07"
+    assert "| ant | SHAC | 2 | 8200 +- 200 |" in (out / "locomotion.md").read_text()
+    locomotion.plot_task("ant", runs["ant"], tmp_path / "ant.png")
+    assert (tmp_path / "ant.png").read_bytes()[:4] == b"\x89PNG"
+    fresh = tmp_path / "fresh"
+    restore_runs(fresh, out / "locomotion.json",
+                 lambda saved: [r for algos in saved["runs"].values() for rs in algos.values() for r in rs])
+    assert locomotion.load_runs(fresh) == runs
+
+
+@pytest.mark.parametrize("flag", ["--bptt-steps", "--ppo-steps"])
+def test_a_budget_below_one_step_is_refused_by_name(flag, capsys):
+    with pytest.raises(SystemExit):
+        locomotion.main([flag, "0", "--tasks", "ant"])
+    assert f"{flag} must be >= 1, got 0" in capsys.readouterr().err
