@@ -21,7 +21,7 @@ import pytest
 from jax.test_util import check_grads
 
 import lagrange as lg
-from tests.helpers import states_equal
+from tests.helpers import states_equal, to_float32
 
 
 ERK = [lg.RK4(), lg.Euler(), lg.Tsit5(), lg.Dopri5(), lg.Dopri8()]
@@ -289,7 +289,6 @@ def test_gradients_through_diffrax_adjoint():
         np.testing.assert_allclose(a, b, rtol=1e-11, atol=1e-12)
 
 
-
 @pytest.mark.parametrize("solver, kw", [
     (lg.SemiImplicitEuler(), {}), (lg.RK4(), dict(substeps=3)), (lg.Tsit5(), dict(rtol=1e-6, atol=1e-6)),
     (lg.RK4(), dict(adjoint=diffrax.RecursiveCheckpointAdjoint())),
@@ -300,7 +299,7 @@ def test_a_float32_chain_runs_in_float32_under_64_bit_mode(solver, kw):
     its gradient; 15 intervals meet float64's to float32 round-off: measured <= 4.9e-7 of max|qd| on the fixed steps
     and 1.2e-6 adaptive (float32 also picks other steps there, at tolerances of 1e-6); bound 50 x float32's 1.2e-7."""
     chain, q0, qd0, controls = _acrobot_problem()
-    low = jax.tree.map(lambda a: a.astype(jnp.float32) if eqx.is_inexact_array(a) else a, chain)
+    low = to_float32(chain)
 
     def run(c, qd0, dtype):
         return lg.simulate(c, q0.astype(dtype), qd0, controls.astype(dtype), 0.02, solver, **kw)
@@ -315,6 +314,7 @@ def test_a_float32_chain_runs_in_float32_under_64_bit_mode(solver, kw):
     scale = max(1.0, float(jnp.max(jnp.abs(exact.qd))))
     assert float(jnp.max(jnp.abs(tr.q - exact.q))) <= 6e-6 * scale
     assert float(jnp.max(jnp.abs(tr.qd - exact.qd))) <= 6e-6 * scale
+
 
 # ------------------------------------------------------------------ policies and step
 

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import pathlib
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import mujoco
@@ -32,7 +31,7 @@ import lagrange as lg
 from lagrange.interop.mjcf import from_mjcf, to_mjcf
 from lagrange.joints import Ball, Free, Hinge, Slide
 from lagrange.tree import Body, Motor, Tree
-from tests.helpers import ROOT, mujoco_terms, rel
+from tests.helpers import ROOT, mujoco_terms, rel, to_float32
 
 EXACT = 1e-10
 TRAJECTORY = 1e-9
@@ -303,10 +302,6 @@ def test_gradients_from_rest_are_finite_and_exact():
     assert np.all(np.isfinite(g))
 
 
-def _float32(x):
-    return jax.tree.map(lambda a: a.astype(jnp.float32) if eqx.is_inexact_array(a) else a, x)
-
-
 def test_a_float32_tree_computes_in_float32_under_64_bit_mode():
     """A tree cast to float32 stays float32 with JAX's 64-bit mode on (as here): the static constants (joint axes,
     anchors, the 0/1 link matrices, armature, damping and stiffness) follow the coordinates' dtype instead of promoting
@@ -333,7 +328,7 @@ def test_a_float32_tree_computes_in_float32_under_64_bit_mode():
         return lg.simulate(tree, jnp.asarray(q, dtype), qd0, jnp.asarray(us, dtype), 0.002, lg.SemiImplicitEuler())
 
     def final(qd0):
-        tr = run(_float32(tree), qd0, jnp.float32)
+        tr = run(to_float32(tree), qd0, jnp.float32)
         return jnp.sum(tr.q[-1] ** 2), tr
 
     exact = run(tree, jnp.asarray(qd), jnp.float64)

@@ -22,6 +22,7 @@ import pytest
 
 import lagrange as lg
 from lagrange.chain import Chain, Link
+from tests.helpers import to_float32
 from oracles import euler_lagrange as el
 
 # ---------------------------------------------------------------------------------------------
@@ -332,10 +333,6 @@ def test_stiff_damping_explicit_fails_loudly_implicit_stays_stable():
 # float32 against float64
 
 
-def _to_f32(chain):
-    return jax.tree.map(lambda x: x.astype(jnp.float32) if eqx.is_array(x) else x, chain)
-
-
 @functools.partial(jax.jit, static_argnames=("dt", "steps"))
 def _rk4_positions(chain, q0, qd0, dt, steps):
     """The joint coordinates of an RK4 rollout, compiled once per chain structure, dtype, ``dt`` and ``steps`` (the
@@ -351,7 +348,7 @@ def _parting_time(chain, q0, dt=1e-3, steps=20_000, tol=0.1, perturb=None):
     run = functools.partial(_rk4_positions, dt=dt, steps=steps)
     ref = np.asarray(run(chain, q0, zeros))
     if perturb is None:
-        other = run(_to_f32(chain), q0.astype(jnp.float32), zeros.astype(jnp.float32))
+        other = run(to_float32(chain), q0.astype(jnp.float32), zeros.astype(jnp.float32))
         assert other.dtype == jnp.float32
     else:
         other = run(chain, q0 + perturb, zeros)
