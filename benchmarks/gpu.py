@@ -37,7 +37,6 @@ import re
 import subprocess
 import time
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 
@@ -99,14 +98,9 @@ def precision(dtype):
         jax.config.update("jax_enable_x64", before)
 
 
-def _cast(tree, dtype):
-    """Every floating array of ``tree`` (a chain, inputs) in ``dtype``."""
-    return jax.tree_util.tree_map(lambda x: x.astype(dtype) if eqx.is_inexact_array(x) else x, tree)
-
-
 def _inputs(n, m, B, T, dtype):
     """``benchmarks/throughput.py``'s inputs ``(q0, qd0, us)`` in ``dtype``."""
-    return _cast(_inputs64(n, m, B, T), dtype)
+    return lg.astype(_inputs64(n, m, B, T), dtype)
 
 
 def _lagrange(chain, solver, dt, argnums):
@@ -175,7 +169,7 @@ def _acrobot_rows(s, dtype, batches, T, dt):
 def scaling_rows(s):
     rows, T, dt = [], s["scaling_T"], 0.01
     for n in s["scaling_ns"]:
-        chain = _cast(lg.systems.n_link_pendulum(n), jnp.float32)
+        chain = lg.astype(lg.systems.n_link_pendulum(n), jnp.float32)
         args = _inputs(n, chain.m, s["scaling_batch"], T, jnp.float32)
         rows += _rows("scaling", "lagrange_sie", _lagrange(chain, lg.SemiImplicitEuler(), dt, (0, 1)), args, T,
                       jnp.float32, n=n)
@@ -189,12 +183,12 @@ def legged_rows(s):
         model = legged_model(xml, constraints)
         mjx_model = legged_model(xml, constraints, iterations=1)
         dt = model.opt.timestep
-        engines = {"lagrange_sie": _lagrange(_cast(chain, jnp.float32), lg.SemiImplicitEuler(), dt, (0, 1))}
+        engines = {"lagrange_sie": _lagrange(lg.astype(chain, jnp.float32), lg.SemiImplicitEuler(), dt, (0, 1))}
         if s is FULL or not constraints:  # --small: MJX in free flight only (its contact solver compiles for long)
             engines["mjx"] = _jax_pair(mjx_rollout(mjx_model, dt), (0, 1))
         for B in s["legged_batches"]:
             (q0, qd0, us), touching = _legged_inputs(chain, model, B)
-            args = _cast((q0, qd0, us[:, :T]), jnp.float32)
+            args = lg.astype((q0, qd0, us[:, :T]), jnp.float32)
             for e, pair in engines.items():  # MJX's gradient through its contact solver: not run (memory)
                 # --small: lagrange's gradient in free flight only (the hopper's on the ground compiles for long)
                 gradient = (s is FULL or not constraints) if e == "lagrange_sie" else (s is FULL and not constraints)
@@ -217,25 +211,25 @@ def trees3d_rows(s):
             "half_cheetah_tree": gymnasium_model("half_cheetah")}
     for name, path in free.items():
         model, tree = trees3d.free_flight(path)
-        engines = {"lagrange_sie": _lagrange(_cast(tree, jnp.float32), lg.SemiImplicitEuler(), model.opt.timestep,
-                                            (0, 1))}
+        engines = {"lagrange_sie": _lagrange(lg.astype(tree, jnp.float32), lg.SemiImplicitEuler(),
+                                             model.opt.timestep, (0, 1))}
         if s is FULL:  # --small: lagrange only (MJX's 3-D compiles are long on a CPU; the other sections run MJX)
             engines["mjx"] = _jax_pair(mjx_rollout(model, model.opt.timestep), (0, 1))
         for B in s["trees3d_batches"]:
             q0, qd0 = trees3d.states(model, rng, B)
-            args = _cast(tuple(jnp.asarray(x) for x in (q0, qd0, rng.uniform(-1, 1, (B, T, model.nu)))),
-                         jnp.float32)
+            args = lg.astype(tuple(jnp.asarray(x) for x in (q0, qd0, rng.uniform(-1, 1, (B, T, model.nu)))),
+                             jnp.float32)
             for e, pair in engines.items():
                 rows += _rows("trees3d", e, pair, args, T, jnp.float32, model=name,
                               gradient=s is FULL or name == "half_cheetah_tree")
     for B in s["trees3d_batches"]:
         model, tree, inputs = trees3d._ant_on_the_ground(B, T)
-        engines = {"lagrange_sie": _lagrange(_cast(tree, jnp.float32), lg.SemiImplicitEuler(), trees3d.DFLEX_ANT["dt"],
-                                            (0, 1))}
+        engines = {"lagrange_sie": _lagrange(lg.astype(tree, jnp.float32), lg.SemiImplicitEuler(),
+                                             trees3d.DFLEX_ANT["dt"], (0, 1))}
         if s is FULL:
             model.opt.iterations = 1  # more: MJX's while_loop cannot be reverse-differentiated (mujoco#2259)
             engines["mjx"] = _jax_pair(mjx_rollout(model, model.opt.timestep), (0, 1))
-        args = _cast(tuple(jnp.asarray(x) for x in inputs), jnp.float32)
+        args = lg.astype(tuple(jnp.asarray(x) for x in inputs), jnp.float32)
         for e, pair in engines.items():
             rows += _rows("trees3d", e, pair, args, T, jnp.float32, model="ant_on_the_ground", gradient=s is FULL)
     return rows

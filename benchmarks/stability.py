@@ -239,10 +239,6 @@ def adaptive_stress(states, per, dt=1e-3, steps=500, rtol=1e-8, atol=1e-8, max_s
                 horizon_s=steps * dt, states_drawn_per_size=per, rows=rows)
 
 
-def _to_f32(chain):
-    return jax.tree.map(lambda x: x.astype(jnp.float32) if eqx.is_array(x) else x, chain)
-
-
 def parting(dt=1e-3, steps=30_000, tol=0.1):
     cases = {
         "pendulum": (lg.systems.pendulum(), [2.0]),
@@ -265,7 +261,7 @@ def parting(dt=1e-3, steps=30_000, tol=0.1):
             i = int(np.argmax(gap > tol))
             return (i * dt if gap[i] > tol else None), float(gap[-1])
 
-        t32, g32 = part(run(_to_f32(chain), q0.astype(jnp.float32), z.astype(jnp.float32)))
+        t32, g32 = part(run(lg.astype(chain, jnp.float32), q0.astype(jnp.float32), z.astype(jnp.float32)))
         tp, gp = part(run(chain, q0 + 1e-7, z))
         rows.append(dict(system=name, q0=np.asarray(q0).tolist(), horizon_s=steps * dt,
                          float32_parting_s=t32, float32_final_gap=g32,
@@ -278,7 +274,7 @@ def gradient_growth(horizons, dt=0.01):
     chain64 = lg.systems.acrobot()
     rows = []
     for dtype in (jnp.float64, jnp.float32):
-        chain = chain64 if dtype == jnp.float64 else _to_f32(chain64)
+        chain = chain64 if dtype == jnp.float64 else lg.astype(chain64, jnp.float32)
         q0 = jnp.array([2.0, 1.0], dtype)
         qd0 = jnp.zeros(2, dtype)
 

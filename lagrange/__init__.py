@@ -19,6 +19,7 @@ from lagrange.integrate import Trajectory, simulate, step
 from lagrange.batch import simulate_batch
 from lagrange.compile import compiler_options
 from lagrange.kinematics import com_positions, positions
+from lagrange.precision import astype
 from lagrange.solvers import RK4, Dopri5, Dopri8, Euler, MomentumEuler, SemiImplicitEuler, Tsit5
 from lagrange import solvers, systems
 
@@ -48,6 +49,7 @@ __all__ = [
     "PenaltyContact",
     "PenaltyLimits",
     "actuation_matrix",
+    "astype",
     "clamp_controls",
     "bias_forces",
     "com_positions",

@@ -110,11 +110,6 @@ SYSTEMS = {
 }
 
 
-def to_float32(model):
-    """A chain or tree with its float arrays cast to float32 (what a user does to run a model in float32)."""
-    return jax.tree.map(lambda a: a.astype(jnp.float32) if eqx.is_inexact_array(a) else a, model)
-
-
 def rel(a, b) -> float:
     """max|a - b| / max(1, max|b|)."""
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)

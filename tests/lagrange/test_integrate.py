@@ -21,7 +21,7 @@ import pytest
 from jax.test_util import check_grads
 
 import lagrange as lg
-from tests.helpers import states_equal, to_float32
+from tests.helpers import states_equal
 
 
 ERK = [lg.RK4(), lg.Euler(), lg.Tsit5(), lg.Dopri5(), lg.Dopri8()]
@@ -299,7 +299,7 @@ def test_a_float32_chain_runs_in_float32_under_64_bit_mode(solver, kw):
     its gradient; 15 intervals meet float64's to float32 round-off: measured <= 4.9e-7 of max|qd| on the fixed steps
     and 1.2e-6 adaptive (float32 also picks other steps there, at tolerances of 1e-6); bound 50 x float32's 1.2e-7."""
     chain, q0, qd0, controls = _acrobot_problem()
-    low = to_float32(chain)
+    low = lg.astype(chain, jnp.float32)
 
     def run(c, qd0, dtype):
         return lg.simulate(c, q0.astype(dtype), qd0, controls.astype(dtype), 0.02, solver, **kw)
@@ -314,6 +314,24 @@ def test_a_float32_chain_runs_in_float32_under_64_bit_mode(solver, kw):
     scale = max(1.0, float(jnp.max(jnp.abs(exact.qd))))
     assert float(jnp.max(jnp.abs(tr.q - exact.q))) <= 6e-6 * scale
     assert float(jnp.max(jnp.abs(tr.qd - exact.qd))) <= 6e-6 * scale
+
+
+def test_astype_casts_floating_arrays_only_and_refuses_other_types():
+    """lg.astype casts every floating array of a model or states and leaves integer arrays, Python numbers and static
+    fields alone; a non-floating type, and float64 with the 64-bit mode off, are refused by name."""
+    chain = lg.systems.acrobot()
+    low = lg.astype(chain, jnp.float32)
+    floats = [a for a in jax.tree.leaves(low) if eqx.is_inexact_array(a)]
+    assert floats and all(a.dtype == jnp.float32 for a in floats)
+    assert jax.tree.structure(low) == jax.tree.structure(chain)
+    assert float(jnp.max(jnp.abs(low.mass - chain.mass))) == 0.0  # exactly representable parameters
+    q, index, scale = lg.astype((jnp.ones(2), jnp.arange(3), 2.0), jnp.float32)
+    assert q.dtype == jnp.float32 and index.dtype == jnp.arange(3).dtype and scale == 2.0
+    assert lg.astype(low, jnp.float64).mass.dtype == jnp.float64
+    with pytest.raises(ValueError, match="dtype must be a floating type .* got int32"):
+        lg.astype(chain, jnp.int32)
+    with jax.enable_x64(False), pytest.raises(ValueError, match="float64 needs JAX's 64-bit mode"):
+        lg.astype(chain, jnp.float64)
 
 
 # ------------------------------------------------------------------ policies and step

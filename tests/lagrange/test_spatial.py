@@ -31,7 +31,7 @@ import lagrange as lg
 from lagrange.interop.mjcf import from_mjcf, to_mjcf
 from lagrange.joints import Ball, Free, Hinge, Slide
 from lagrange.tree import Body, Motor, Tree
-from tests.helpers import ROOT, mujoco_terms, rel, to_float32
+from tests.helpers import ROOT, mujoco_terms, rel
 
 EXACT = 1e-10
 TRAJECTORY = 1e-9
@@ -328,7 +328,7 @@ def test_a_float32_tree_computes_in_float32_under_64_bit_mode():
         return lg.simulate(tree, jnp.asarray(q, dtype), qd0, jnp.asarray(us, dtype), 0.002, lg.SemiImplicitEuler())
 
     def final(qd0):
-        tr = run(to_float32(tree), qd0, jnp.float32)
+        tr = run(lg.astype(tree, jnp.float32), qd0, jnp.float32)
         return jnp.sum(tr.q[-1] ** 2), tr
 
     exact = run(tree, jnp.asarray(qd), jnp.float64)

@@ -22,7 +22,6 @@ import pytest
 
 import lagrange as lg
 from lagrange.chain import Chain, Link
-from tests.helpers import to_float32
 from oracles import euler_lagrange as el
 
 # ---------------------------------------------------------------------------------------------
@@ -348,7 +347,7 @@ def _parting_time(chain, q0, dt=1e-3, steps=20_000, tol=0.1, perturb=None):
     run = functools.partial(_rk4_positions, dt=dt, steps=steps)
     ref = np.asarray(run(chain, q0, zeros))
     if perturb is None:
-        other = run(to_float32(chain), q0.astype(jnp.float32), zeros.astype(jnp.float32))
+        other = run(lg.astype(chain, jnp.float32), q0.astype(jnp.float32), zeros.astype(jnp.float32))
         assert other.dtype == jnp.float32
     else:
         other = run(chain, q0 + perturb, zeros)
