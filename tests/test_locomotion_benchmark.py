@@ -32,6 +32,31 @@ def test_a_bptt_budget_is_whole_epochs_and_a_checkpoint_is_resumed(tmp_path, mon
     assert seen["iterations"] == 2000 and "--resume" in seen["argv"] and seen["units"] == (256, 128)
 
 
+def test_ppo_on_a_3d_task_trains_in_a_child_with_the_ynn_flag_and_a_planar_one_in_process(tmp_path, monkeypatch):
+    """Brax's trainer jits its own programs: a 3-D task's PPO runs in a fresh interpreter whose XLA_FLAGS hold
+    ``YNN_OFF_FLAG`` (unless this one's do), which writes the run file; the planar hopper's runs here."""
+    children, in_process = [], []
+
+    def fake_child(argv, env, cwd, check):
+        children.append((argv, env["XLA_FLAGS"]))
+        run_file(tmp_path, "ppo", "ant", 3).write_text(json.dumps(_record("ppo", "ant", 3, 5.0, [[0, 0, 5.0]])))
+
+    def fake_ppo(task, seed, steps):
+        in_process.append(task)
+        return {k: v for k, v in _record("ppo", task, seed, 7.0, [[0, 0, 7.0]]).items() if k not in ("algo", "task")}
+
+    monkeypatch.delenv("XLA_FLAGS", raising=False)
+    monkeypatch.setattr(locomotion.subprocess, "run", fake_child)
+    monkeypatch.setattr(locomotion, "run_ppo", fake_ppo)
+    assert locomotion.train_one("ppo", "ant", 3, tmp_path, ppo_steps=1000)["return"] == 5.0
+    (argv, flags), = children
+    assert flags == locomotion.YNN_OFF_FLAG and argv[-2:] == ["--ppo-steps", "1000"] and "ant" in argv
+    assert locomotion.train_one("ppo", "hopper", 0, tmp_path)["return"] == 7.0 and in_process == ["hopper"]
+    monkeypatch.setenv("XLA_FLAGS", locomotion.YNN_OFF_FLAG)  # the child itself: trains in its own process
+    assert locomotion.train_one("ppo", "ant", 4, tmp_path)["return"] == 7.0 and in_process == ["hopper", "ant"]
+    assert len(children) == 1
+
+
 def test_the_table_and_plots_come_from_the_run_files_and_restore_on_a_fresh_clone(tmp_path):
     runs_dir, out = tmp_path / "runs", tmp_path / "results"
     runs_dir.mkdir(), out.mkdir()

@@ -66,7 +66,10 @@ class BraxEnv(Env):
 
     Usage: ``env = BraxEnv(Acrobot.rods())``, then ``env.reset(key)`` and ``env.step(state, action)``
     (jit and vmap them as any Brax environment), or pass ``environment=env`` to a Brax trainer inside
-    :func:`brax_training_compat`.
+    :func:`brax_training_compat`. A 3-D task's trainer on a CPU wants YNNPACK's fusions off, as
+    :func:`lagrange.compiler_options` turns them off for the library's own programs: Brax jits its programs itself,
+    so set :data:`lagrange.compile.YNN_OFF_FLAG` in ``XLA_FLAGS`` before JAX starts (Brax's PPO on the humanoid:
+    ~8x faster).
 
     Args:
         task: a task of :mod:`lagrange.tasks`.

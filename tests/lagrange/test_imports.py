@@ -170,9 +170,10 @@ def test_chain_imports_no_other_module():
     assert graph["lagrange.contact"] == set() and graph["lagrange.limits"] == {"lagrange.contact"}
 
 
-def _run_fresh(code: str) -> None:
-    """Run ``code`` in a fresh interpreter (nothing imported yet); fails with its stderr if it fails."""
-    r = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True)
+def _run_fresh(code: str, env: dict | None = None) -> None:
+    """Run ``code`` in a fresh interpreter (nothing imported yet; ``env``: its environment variables); fails with its
+    stderr if it fails."""
+    r = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True, env=env)
     assert r.returncode == 0, r.stderr
 
 
@@ -240,3 +241,24 @@ def test_the_compiler_options_turn_off_the_ynn_fusions_for_a_tree_only():
         return "__ynn_fusion" in jax.jit(f, compiler_options=options).lower(q, qd).compile().as_text()
 
     assert fused(None) and not fused(lg.compiler_options(tree))
+
+
+def test_the_xla_flag_turns_off_the_ynn_fusions_for_every_program_of_a_fresh_process():
+    """``YNN_OFF_FLAG`` in ``XLA_FLAGS`` (for programs that others jit: Brax's trainers) is ``YNN_OFF`` for the whole
+    process: a tree's program jitted with the defaults holds no YNNPACK fusion there (it does without the flag: the
+    test above)."""
+    import os
+
+    from lagrange.compile import YNN_OFF, YNN_OFF_FLAG
+
+    assert YNN_OFF_FLAG == "--{}={}".format(*next(iter(YNN_OFF.items())))
+    _run_fresh("""
+        import jax, jax.numpy as jnp
+        import lagrange as lg
+        tree = lg.Tree([lg.Body(1.0, (0.1, 0.2, 0.3), joints=[lg.Free()]),
+                        lg.Body(1.0, (0.1, 0.1, 0.1), (0.0, 0.0, -0.5), joints=[lg.Hinge((0, 1, 0))])])
+        q = jnp.tile(tree.neutral().astype(jnp.float32), (64, 1))
+        qd = jnp.ones((64, tree.nv), jnp.float32)
+        f = jax.vmap(lambda q, qd: lg.bias_forces(tree, q, qd))
+        assert "__ynn_fusion" not in jax.jit(f).lower(q, qd).compile().as_text()
+    """, env={**os.environ, "XLA_FLAGS": YNN_OFF_FLAG})
