@@ -24,10 +24,14 @@ def astype(tree, dtype):
         ValueError: ``dtype`` is not a floating type, or is float64 while JAX's 64-bit mode is off (where the cast
             would silently give float32).
     """
-    dt = jnp.dtype(dtype)
-    if not jnp.issubdtype(dt, jnp.floating):
-        raise ValueError(f"dtype must be a floating type (float16, bfloat16, float32 or float64), got {dt}")
+    try:  # jnp.dtype(None) is float64 and an unknown name a TypeError: both refused here by name
+        dt = None if dtype is None else jnp.dtype(dtype)
+    except TypeError:
+        dt = None
+    if dt is None or not jnp.issubdtype(dt, jnp.floating):
+        raise ValueError("dtype must be a floating type (float16, bfloat16, float32 or float64), got "
+                         f"{repr(dtype) if dt is None else dt}")
     if jax.dtypes.canonicalize_dtype(dt) != dt:  # float64 with the 64-bit mode off
-        raise ValueError("dtype float64 needs JAX's 64-bit mode: call jax.config.update('jax_enable_x64', True) "
-                         "before creating any array, or use float32")
+        raise ValueError("dtype float64 needs JAX's 64-bit mode: turn the jax_enable_x64 option on before creating "
+                         "any array (docs: Getting started, Precision), or use float32")
     return jax.tree.map(lambda a: a.astype(dt) if eqx.is_inexact_array(a) else a, tree)

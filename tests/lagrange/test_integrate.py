@@ -330,6 +330,9 @@ def test_astype_casts_floating_arrays_only_and_refuses_other_types():
     assert lg.astype(low, jnp.float64).mass.dtype == jnp.float64
     with pytest.raises(ValueError, match="dtype must be a floating type .* got int32"):
         lg.astype(chain, jnp.int32)
+    for bad in ("nonsense", None):  # jnp.dtype: a TypeError, and float64 for None
+        with pytest.raises(ValueError, match=f"dtype must be a floating type .* got {bad!r}"):
+            lg.astype(chain, bad)
     with jax.enable_x64(False), pytest.raises(ValueError, match="float64 needs JAX's 64-bit mode"):
         lg.astype(chain, jnp.float64)
 
