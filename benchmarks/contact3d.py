@@ -35,8 +35,8 @@ import lagrange as lg  # noqa: E402
 from benchmarks._cli import REPO, gymnasium_model, markdown_table  # noqa: E402
 from benchmarks._timing import median_time  # noqa: E402
 from lagrange.interop.mjcf import from_mjcf  # noqa: E402
-from lagrange.spatial.contact import contact_spots  # noqa: E402
-from lagrange.spatial.kinematics import Kinematics  # noqa: E402
+from lagrange.rbda.contact import contact_spots  # noqa: E402
+from lagrange.rbda.kinematics import Kinematics  # noqa: E402
 from optim.checkpoint import write_json, write_text  # noqa: E402
 
 KES = (2e3, 2e4, 2e5)

@@ -43,7 +43,7 @@ def momenta(tree, q, qd):
 def main(seconds, out):
     model = mujoco.MjModel.from_xml_path(str(MODEL))
     model.opt.gravity[:], model.dof_damping[:], model.jnt_stiffness[:] = 0.0, 0.0, 0.0
-    tree = from_mjcf(model, limits="ignore", contact="ignore")  # a lagrange.tree.Tree: q = qpos, qd = qvel
+    tree = from_mjcf(model, limits="ignore", contact="ignore")  # a lagrange.model.tree.Tree: q = qpos, qd = qvel
     rng = np.random.default_rng(0)
     q0 = jnp.asarray(model.qpos0 + np.r_[np.zeros(7), rng.uniform(-0.5, 0.5, model.nq - 7)])
     qd0 = jnp.asarray(np.r_[0.5, 0.0, 1.0, 2.0, -1.0, 3.0, rng.uniform(-2, 2, model.nv - 6)])

@@ -1,12 +1,15 @@
 """lagrange: exact, fast, differentiable dynamics of kinematic trees in pure JAX: planar chains and trees (with ground
 contact and joint limits by penalty forces) and spatial trees of hinges, slides, balls and free joints."""
 
+import importlib
+import sys
+
 from lagrange.chain import Chain, Link
-from lagrange.joints import Ball, Free, Hinge, Slide
-from lagrange.tree import Body, Motor, Tree
-from lagrange.contact import PenaltyContact
-from lagrange.limits import PenaltyLimits
-from lagrange.actuation import actuation_matrix, clamp_controls
+from lagrange.model.joints import Ball, Free, Hinge, Slide
+from lagrange.model.tree import Body, Motor, Tree
+from lagrange.model.contact import PenaltyContact
+from lagrange.model.limits import PenaltyLimits
+from lagrange.forces import actuation_matrix, clamp_controls
 from lagrange.dynamics import (
     bias_forces,
     energy,
@@ -16,12 +19,13 @@ from lagrange.dynamics import (
     mass_matrix,
 )
 from lagrange.integrate import Trajectory, simulate, step
-from lagrange.batch import simulate_batch
+from lagrange.integrate.batch import simulate_batch
 from lagrange.compile import compiler_options
 from lagrange.kinematics import com_positions, positions
 from lagrange.precision import astype
-from lagrange.solvers import RK4, Dopri5, Dopri8, Euler, MomentumEuler, SemiImplicitEuler, Tsit5
-from lagrange import solvers, systems
+from lagrange.integrate.solvers import RK4, Dopri5, Dopri8, Euler, MomentumEuler, SemiImplicitEuler, Tsit5
+from lagrange.integrate import solvers
+from lagrange import systems
 
 __all__ = [
     "Ball",
@@ -62,6 +66,15 @@ __all__ = [
 ]
 
 
+# the modules' homes before the layout of model/, integrate/, planar/ and rbda/: ``import lagrange.tree`` and the rest
+# still find them
+_MOVED = {"tree": "lagrange.model.tree", "joints": "lagrange.model.joints", "contact": "lagrange.model.contact",
+          "limits": "lagrange.model.limits", "checks": "lagrange.model.checks", "solvers": "lagrange.integrate.solvers",
+          "batch": "lagrange.integrate.batch"}
+for _old, _new in _MOVED.items():
+    sys.modules[f"lagrange.{_old}"] = globals()[_old] = importlib.import_module(_new)
+
+
 def __getattr__(name: str) -> type:
-    """The renamed solvers' old names (:data:`lagrange.solvers.RENAMED`), with a ``DeprecationWarning``."""
+    """The renamed solvers' old names (:data:`lagrange.integrate.solvers.RENAMED`), with a ``DeprecationWarning``."""
     return solvers.renamed(name)

@@ -50,10 +50,11 @@ import jax
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from lagrange.checks import (check_every_joint_moves_something, check_laws, check_pair, check_parents, check_point,
+from lagrange.model.checks import (check_every_joint_moves_something, check_laws, check_pair, check_parents,
+check_point,
                              check_points, check_scalar, concrete, is_zero, stack, stack_points, value_of)
-from lagrange.contact import PenaltyContact
-from lagrange.limits import PenaltyLimits
+from lagrange.model.contact import PenaltyContact
+from lagrange.model.limits import PenaltyLimits
 
 JOINTS = ("revolute", "prismatic")
 """The joint kinds a :class:`Link` may have."""

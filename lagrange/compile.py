@@ -19,7 +19,7 @@ The library's own jitted programs of a task (``optim``'s trainers and evaluation
 
 from __future__ import annotations
 
-from lagrange.tree import Tree
+from lagrange.model.tree import Tree
 
 __all__ = ["YNN_OFF_FLAG", "compiler_options"]
 
@@ -36,7 +36,7 @@ through :class:`~lagrange.interop.brax.BraxEnv` runs 8x faster with it on a CPU 
 
 def compiler_options(model, backend: str | None = None) -> dict[str, str] | None:
     """The ``compiler_options`` of ``jax.jit`` for programs of ``model``: :data:`YNN_OFF` for a spatial
-    :class:`~lagrange.tree.Tree` compiled for a CPU, else None (the compiler's defaults).
+    :class:`~lagrange.model.tree.Tree` compiled for a CPU, else None (the compiler's defaults).
 
     Args:
         model: a :class:`lagrange.Tree` or a :class:`lagrange.Chain` (or anything else: None).

@@ -17,10 +17,10 @@ and the joints' dampers ``D qd``, springs ``K (q - q_ref)``, the limits' penalty
 This module checks the arguments and the parameters and picks one of two derivations by the chain's size, here and
 nowhere else:
 
-- chains of fewer than ``RECURSIVE_MIN`` links: :mod:`lagrange.unrolled`, where ``J_i`` and ``(dJ_i/dt) qd`` are
+- chains of fewer than ``RECURSIVE_MIN`` links: :mod:`lagrange.planar.unrolled`, where ``J_i`` and ``(dJ_i/dt) qd`` are
   differentiated at trace time from the forward kinematics written as sums of unit vectors, simplified at trace time,
   so the compiled program contains only the terms the chain has, and ``M qdd = rhs`` is solved unrolled over scalars;
-- chains of ``RECURSIVE_MIN`` or more links: the recursive algorithms of :mod:`lagrange.recursive`
+- chains of ``RECURSIVE_MIN`` or more links: the recursive algorithms of :mod:`lagrange.planar.recursive`
   (ABA, RNEA, CRBA as scans over the links), whose work grows like n rather than n^3.
 
 The tests check both against the literal derivation (Hessians of the Lagrangian,
@@ -40,11 +40,12 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float
 
-from lagrange import recursive, spatial, unrolled
-from lagrange.actuation import actuation_matrix
+from lagrange import rbda as spatial
+from lagrange.planar import recursive, unrolled
+from lagrange.forces import actuation_matrix
 from lagrange.chain import Chain
-from lagrange.checks import check_parameters
-from lagrange.tree import Tree
+from lagrange.model.checks import check_parameters
+from lagrange.model.tree import Tree
 
 __all__ = ["RECURSIVE_MIN", "SINGULAR", "actuation_matrix", "bias_forces", "energy", "forward_dynamics",
            "forward_dynamics_and_pivots", "gravity_forces", "inverse_dynamics", "mass_matrix"]
@@ -67,8 +68,8 @@ def _folded(chain: Chain) -> Chain:
 
 
 def _prepared(chain: Chain, *, at_run_time: bool = True) -> Chain:
-    """``chain`` with its parameters checked (:func:`lagrange.checks.check_parameters`: concrete ones now, traced ones
-    when run unless ``at_run_time=False``) and folded (:func:`_folded`)."""
+    """``chain`` with its parameters checked (:func:`lagrange.model.checks.check_parameters`: concrete ones now, traced
+    ones when run unless ``at_run_time=False``) and folded (:func:`_folded`)."""
     return _folded(check_parameters(chain, at_run_time=at_run_time))
 
 
@@ -82,7 +83,7 @@ def _check(chain: Chain | Tree, name: str, x, size: int | None = None):
 
 
 RECURSIVE_MIN = 4
-"""Chains of at least this many links use the recursive algorithms of :mod:`lagrange.recursive`
+"""Chains of at least this many links use the recursive algorithms of :mod:`lagrange.planar.recursive`
 (ABA for ``forward_dynamics``, CRBA for ``mass_matrix``, RNEA for the forces,
 ``inverse_dynamics`` and ``energy``): O(n) work (O(n^2) for M) and a compiled program whose size
 does not depend on n. Shorter chains keep the unrolled relative-angle derivation above, which needs
@@ -112,7 +113,7 @@ def _recursive(chain: Chain) -> bool:
 
 
 def _derivation(chain: Chain | Tree):
-    """The module that computes for ``chain``: :mod:`lagrange.spatial` for a 3-D tree, else by the chain's size the
+    """The module that computes for ``chain``: :mod:`lagrange.rbda` for a 3-D tree, else by the chain's size the
     recursive algorithms or the unrolled derivation."""
     if isinstance(chain, Tree):
         return spatial
@@ -209,9 +210,9 @@ def forward_dynamics(
         implicit_damping_dt: ``h`` [s] to solve with ``M + h diag(damping)`` instead of ``M``, the velocity
             update of :class:`lagrange.SemiImplicitEuler` (damping treated implicitly); ``None`` for ``M``.
         check: raise where ``M`` is singular at ``q``, or where a traced parameter breaks its rule
-            (:func:`lagrange.checks.check_parameters`); ``False`` skips both run-time checks (a NaN or Inf then comes
-            out instead, as inside :func:`lagrange.simulate`, which checks the parameters once and the final state).
-            Concrete parameters are checked while tracing either way.
+            (:func:`lagrange.model.checks.check_parameters`); ``False`` skips both run-time checks (a NaN or Inf then
+            comes out instead, as inside :func:`lagrange.simulate`, which checks the parameters once and the final
+            state). Concrete parameters are checked while tracing either way.
 
     Returns:
         ``qdd``, shape ``(*batch, n)`` [rad/s^2 or m/s^2].

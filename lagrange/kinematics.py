@@ -1,6 +1,6 @@
 """Forward kinematics of a planar chain, as jets (values with their q-derivatives).
 
-Each frame's origin and each centre of mass is a pair of :class:`~lagrange._jet.Jet` (x, z).
+Each frame's origin and each centre of mass is a pair of :class:`~lagrange.planar.jet.Jet` (x, z).
 :func:`positions` and :func:`com_positions` read their values; the energy of chains shorter than
 ``lagrange.dynamics.RECURSIVE_MIN`` reads their velocities. Nothing here builds a dense Jacobian.
 """
@@ -13,11 +13,11 @@ from typing import NamedTuple
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from lagrange import spatial
-from lagrange.tree import Tree
-from lagrange import _scalar as s
-from lagrange._jet import Jet, sincos
-from lagrange._scalar import cos_sin
+from lagrange import rbda as spatial
+from lagrange.model.tree import Tree
+from lagrange.math import scalar as s
+from lagrange.planar.jet import Jet, sincos
+from lagrange.math.scalar import cos_sin
 from lagrange.chain import WORLD, Chain
 
 
@@ -128,7 +128,7 @@ def _along(sin_phi, cos_phi, off: float, c_d, c_e):
 def positions(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch n+1 2"]:
     """Joint origins and the last link's tip [m] as (x, z) rows, shape ``(*batch, n + 1, 2)``, at joint coordinates
     ``q`` [rad or m] of shape ``(*batch, n)``; for plotting (a tree's other tips: :func:`tip_positions`). For a
-    spatial :class:`~lagrange.tree.Tree`: every body's origin in the world, ``(*batch, bodies, 3)``."""
+    spatial :class:`~lagrange.model.tree.Tree`: every body's origin in the world, ``(*batch, bodies, 3)``."""
     if isinstance(chain, Tree):
         return spatial.positions(chain, jnp.asarray(q))
     f = frames(chain, q)
@@ -142,7 +142,8 @@ def positions(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*b
 
 def com_positions(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch n 2"]:
     """Centres of mass [m] as (x, z) rows, shape ``(*batch, n, 2)``, at joint coordinates ``q`` [rad or m] of shape
-    ``(*batch, n)``. For a spatial :class:`~lagrange.tree.Tree`: every body's in the world, ``(*batch, bodies, 3)``."""
+    ``(*batch, n)``. For a spatial :class:`~lagrange.model.tree.Tree`: every body's in the world, ``(*batch, bodies,
+    3)``."""
     if isinstance(chain, Tree):
         return spatial.com_positions(chain, jnp.asarray(q))
     f = frames(chain, q)
@@ -169,7 +170,7 @@ def contact_point_positions(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Fl
     """The contact points (``Link(contacts=...)``, their centres, not lowered by the radius) [m] as (x, z) rows,
     shape ``(*batch, k, 2)``, at joint coordinates ``q`` [rad or m] of shape ``(*batch, n)``; ``k = 0`` for a chain
     without contact points. Point ``k`` belongs to link ``chain.contact_links[k]``, radius
-    ``chain.contact_points[k, 2]``. For a spatial :class:`~lagrange.tree.Tree`: the bodies' points in the world,
+    ``chain.contact_points[k, 2]``. For a spatial :class:`~lagrange.model.tree.Tree`: the bodies' points in the world,
     ``(*batch, k, 3)``, bodies in order."""
     if isinstance(chain, Tree):
         return spatial.contact_point_positions(chain, jnp.asarray(q))

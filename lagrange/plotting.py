@@ -17,7 +17,7 @@ import numpy as np
 
 from lagrange.kinematics import contact_point_positions, positions
 from lagrange.tasks import AbstractPoleTask, AbstractTask, TaskState, balanced
-from lagrange.tree import Tree
+from lagrange.model.tree import Tree
 
 __all__ = ["episode_figure", "episode_animation", "gait_figure", "gait_animation"]
 

@@ -16,7 +16,7 @@ def astype(tree, dtype):
     fields are left as they are.
 
     Args:
-        tree: a [`Chain`][lagrange.chain.Chain], a [`Tree`][lagrange.tree.Tree], a task, states ``(q, qd)`` or any
+        tree: a [`Chain`][lagrange.chain.Chain], a [`Tree`][lagrange.model.tree.Tree], a task, states ``(q, qd)`` or any
             pytree of arrays.
         dtype: a floating type: ``jnp.float32``, ``jnp.float64``, ``jnp.float16`` or ``jnp.bfloat16``.
 

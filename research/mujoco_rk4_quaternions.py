@@ -23,7 +23,7 @@ jax.config.update("jax_enable_x64", True)
 import jax.numpy as jnp  # noqa: E402
 
 import lagrange as lg  # noqa: E402
-from lagrange import spatial  # noqa: E402
+from lagrange import rbda as spatial  # noqa: E402
 
 BOX = """<mujoco><option integrator="RK4" timestep="0.05" gravity="0 0 0"/><worldbody><body><freejoint/>
 <geom type="box" size="0.1 0.2 0.4" pos="0.3 0.1 0.2"/></body></worldbody></mujoco>"""

@@ -23,14 +23,14 @@ from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
 from lagrange.chain import Chain
 from lagrange.integrate import step as _step
-from lagrange.solvers import MomentumEuler, SemiImplicitEuler, check_solver
-from lagrange.tree import Tree
+from lagrange.integrate.solvers import MomentumEuler, SemiImplicitEuler, check_solver
+from lagrange.model.tree import Tree
 
 __all__ = ["TaskState", "AbstractTask", "TaskSolver", "control_step", "wrap",
            "check_schedule", "check_joints", "check_number", "check_state", "check_chain"]
 
 TaskSolver = diffrax.AbstractSolver | SemiImplicitEuler | MomentumEuler
-"""The solvers a task steps with (:mod:`lagrange.solvers`; any explicit diffrax Runge-Kutta solver)."""
+"""The solvers a task steps with (:mod:`lagrange.integrate.solvers`; any explicit diffrax Runge-Kutta solver)."""
 
 
 def wrap(angle: Float[ArrayLike, " *shape"]) -> Float[Array, " *shape"]:
@@ -69,8 +69,8 @@ class AbstractTask(eqx.Module):
         dt (float): the control interval [s].
         horizon (int): control steps per episode.
         substeps (int): steps of ``solver`` per control interval.
-        solver (TaskSolver): the integrator (:mod:`lagrange.solvers`, or an explicit diffrax Runge-Kutta solver).
-        name (ClassVar[str]): a display name for titles and results, never switched on.
+        solver (TaskSolver): the integrator (:mod:`lagrange.integrate.solvers`, or an explicit diffrax Runge-Kutta
+        solver). name (ClassVar[str]): a display name for titles and results, never switched on.
     """
 
     chain: AbstractVar[Chain | Tree]

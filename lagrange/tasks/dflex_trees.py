@@ -9,11 +9,11 @@ import math
 
 import numpy as np
 
-from lagrange.contact import PenaltyContact
-from lagrange.joints import Free, Hinge
-from lagrange.limits import PenaltyLimits
+from lagrange.model.contact import PenaltyContact
+from lagrange.model.joints import Free, Hinge
+from lagrange.model.limits import PenaltyLimits
 from lagrange.tasks.locomotion import DENSITY, LIMIT_KD, LIMIT_KE, capsule_mass_and_inertia
-from lagrange.tree import Body, Motor, Tree
+from lagrange.model.tree import Body, Motor, Tree
 
 __all__ = ["ant_tree", "dflex_body", "humanoid_tree"]
 

@@ -31,7 +31,7 @@ from jaxtyping import Array, ArrayLike, Float, PRNGKeyArray
 
 from lagrange import systems
 from lagrange.chain import Chain
-from lagrange.solvers import RK4
+from lagrange.integrate.solvers import RK4
 from lagrange.tasks.base import (TaskSolver, TaskState, check_joints, check_number, check_schedule,
                                  check_state, wrap)
 from lagrange.tasks.poles import AbstractPoleTask

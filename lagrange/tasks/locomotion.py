@@ -43,9 +43,9 @@ from equinox import AbstractClassVar, AbstractVar
 from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
 from lagrange.chain import Chain, Link
-from lagrange.contact import PenaltyContact
-from lagrange.limits import PenaltyLimits
-from lagrange.solvers import SemiImplicitEuler
+from lagrange.model.contact import PenaltyContact
+from lagrange.model.limits import PenaltyLimits
+from lagrange.integrate.solvers import SemiImplicitEuler
 from lagrange.tasks.base import AbstractTask, TaskSolver, TaskState, check_number, check_schedule, check_state
 
 __all__ = ["AbstractLocomotion", "Hopper", "Cheetah", "capsule_mass_and_inertia", "DFLEX_SOLVER"]

@@ -53,13 +53,13 @@ import jax.numpy as jnp
 from equinox import AbstractClassVar, AbstractVar
 from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
-from lagrange import _spatial as al
-from lagrange.joints import Free
-from lagrange.solvers import SemiImplicitEuler
+from lagrange.math import spatial as al
+from lagrange.model.joints import Free
+from lagrange.integrate.solvers import SemiImplicitEuler
 from lagrange.tasks.base import AbstractTask, TaskSolver, TaskState, check_number, check_schedule, check_state
 from lagrange.tasks.dflex_trees import ant_tree, humanoid_tree
 from lagrange.tasks.locomotion import DFLEX_SOLVER
-from lagrange.tree import Tree
+from lagrange.model.tree import Tree
 
 __all__ = ["AbstractLocomotion3D", "Ant", "Humanoid", "HUMANOID_SOLVER"]
 

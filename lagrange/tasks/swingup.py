@@ -50,7 +50,7 @@ from jaxtyping import Array, ArrayLike, Float, PRNGKeyArray
 
 from lagrange import systems
 from lagrange.chain import Chain
-from lagrange.solvers import RK4
+from lagrange.integrate.solvers import RK4
 from lagrange.tasks.base import (TaskSolver, TaskState, check_chain, check_joints, check_number,
                                  check_schedule)
 from lagrange.tasks.poles import AbstractPoleTask

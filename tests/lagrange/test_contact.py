@@ -27,12 +27,12 @@ import numpy as np
 import pytest
 
 import lagrange as lg
-from lagrange import recursive, unrolled
+from lagrange.planar import recursive, unrolled
 from lagrange.chain import Chain, Link
-from lagrange.contact import PenaltyContact
+from lagrange.model.contact import PenaltyContact
 from lagrange.dynamics import _folded
 from lagrange.interop.mjcf import from_mjcf
-from lagrange.limits import PenaltyLimits
+from lagrange.model.limits import PenaltyLimits
 from tests.helpers import mujoco_forward, rel
 
 GYM = pathlib.Path(importlib.util.find_spec("gymnasium").submodule_search_locations[0]) / "envs/mujoco/assets"

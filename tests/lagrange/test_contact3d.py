@@ -19,8 +19,8 @@ import pytest
 
 import lagrange as lg
 from lagrange.interop.mjcf import from_mjcf
-from lagrange.joints import Free, Hinge
-from lagrange.tree import Body, Tree
+from lagrange.model.joints import Free, Hinge
+from lagrange.model.tree import Body, Tree
 from tests.helpers import mujoco_terms, rel
 
 GYM = pathlib.Path(__import__("gymnasium").__file__).parent / "envs" / "mujoco" / "assets"

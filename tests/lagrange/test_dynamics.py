@@ -103,7 +103,7 @@ def test_closed_forms_are_not_trivially_equal():
 # ------------------------------------------------------------------ random chains vs Euler-Lagrange
 
 
-SIZES = (1, 2, 3, 4, 7)  # 1-4 links take the relative-angle path, 7 the recursive one (lagrange.recursive)
+SIZES = (1, 2, 3, 4, 7)  # 1-4 links take the relative-angle path, 7 the recursive one (lagrange.planar.recursive)
 
 
 @functools.cache
@@ -168,7 +168,8 @@ def test_frame_offsets_and_off_line_coms_match_euler_lagrange(n):
     """Link frames turned against their parents (``offset``) and centres of mass off the link line (``com_normal``),
     on both derivations (unit vectors below ``RECURSIVE_MIN`` links, the recursive algorithms at any size), against
     the literal derivation, whose forward kinematics writes both in directly."""
-    from lagrange import dynamics, recursive
+    from lagrange import dynamics
+    from lagrange.planar import recursive
 
     rng = np.random.default_rng(70 + n)
     chain = random_chain(rng, n, frames=True)

@@ -162,12 +162,12 @@ def test_no_module_of_lagrange_names_an_algorithm():
 
 
 def test_chain_imports_no_other_module():
-    """``lagrange.chain``, its checks (``lagrange.checks``) and the laws it holds (``lagrange.contact``,
-    ``lagrange.limits``) are the root of the physics: the parameters and their checks, no dynamics."""
+    """``lagrange.chain``, its checks (``lagrange.model.checks``) and the laws it holds (``lagrange.model.contact``,
+    ``lagrange.model.limits``) are the root of the physics: the parameters and their checks, no dynamics."""
     graph = import_graph("lagrange")
-    assert graph["lagrange.chain"] == {"lagrange.checks", "lagrange.contact", "lagrange.limits"}
-    assert graph["lagrange.checks"] <= {"lagrange.contact", "lagrange.limits"}
-    assert graph["lagrange.contact"] == set() and graph["lagrange.limits"] == {"lagrange.contact"}
+    assert graph["lagrange.chain"] == {"lagrange.model.checks", "lagrange.model.contact", "lagrange.model.limits"}
+    assert graph["lagrange.model.checks"] <= {"lagrange.model.contact", "lagrange.model.limits"}
+    assert graph["lagrange.model.contact"] == set() and graph["lagrange.model.limits"] == {"lagrange.model.contact"}
 
 
 def _run_fresh(code: str, env: dict | None = None) -> None:

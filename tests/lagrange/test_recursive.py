@@ -1,4 +1,4 @@
-"""The recursive algorithms (:mod:`lagrange.recursive`: ABA, RNEA, CRBA) against the unrolled
+"""The recursive algorithms (:mod:`lagrange.planar.recursive`: ABA, RNEA, CRBA) against the unrolled
 derivation of :mod:`lagrange.dynamics` (chains shorter than ``RECURSIVE_MIN``), the literal
 Euler-Lagrange oracle (``benchmarks/oracles/euler_lagrange.py``), finite differences and energy
 conservation, and the dispatch on ``lagrange.dynamics.RECURSIVE_MIN``.
@@ -18,8 +18,9 @@ import numpy as np
 import pytest
 
 import lagrange as lg
-from lagrange import dynamics, recursive
-from lagrange.recursive.kinematics import LinkKinematics
+from lagrange import dynamics
+from lagrange.planar import recursive
+from lagrange.planar.recursive.kinematics import LinkKinematics
 from tests.helpers import assert_close  # REL = 1e-12, as the docstring says
 from tests.helpers import oracle_terms
 from tests.helpers import random_chain as _random_chain

@@ -1,11 +1,11 @@
-"""The float64 and float32 sines and cosines of lagrange._sincos against NumPy's, and their derivatives."""
+"""The float64 and float32 sines and cosines of lagrange.math.sincos against NumPy's, and their derivatives."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from lagrange._sincos import sincos
+from lagrange.math.sincos import sincos
 
 
 @pytest.mark.parametrize("scale", [4.0, 1e2, 1e5])

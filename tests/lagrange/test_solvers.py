@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import lagrange as lg
-from lagrange import solvers
+from lagrange.integrate import solvers
 
 
 def acrobot():
@@ -128,13 +128,13 @@ def test_unknown_solver_error_names_every_allowed_solver():
 
 def test_the_old_name_of_momentum_euler_still_works_with_a_warning():
     """``SymplecticEuler`` was renamed ``MomentumEuler`` (textbooks call semi-implicit Euler symplectic Euler too):
-    the old name, from ``lagrange`` or ``lagrange.solvers``, gives the same class and warns at the caller's line; an
-    unknown name is still an AttributeError naming its module."""
+    the old name, from ``lagrange`` or ``lagrange.integrate.solvers``, gives the same class and warns at the caller's
+    line; an unknown name is still an AttributeError naming its module."""
     for module in (lg, solvers):
         with pytest.warns(DeprecationWarning, match="SymplecticEuler is renamed lagrange.MomentumEuler") as rec:
             old = module.SymplecticEuler
         assert old is lg.MomentumEuler and rec[0].filename == __file__
     assert "SymplecticEuler" not in lg.__all__ and "MomentumEuler" in lg.__all__
-    for module, name in ((lg, "'lagrange'"), (solvers, "'lagrange.solvers'")):
+    for module, name in ((lg, "'lagrange'"), (solvers, "'lagrange.integrate.solvers'")):
         with pytest.raises(AttributeError, match=f"module {name} has no attribute 'SymplecticEuIer'"):
             module.SymplecticEuIer  # noqa: B018 (a capital I for the l: a typo)

@@ -1,4 +1,4 @@
-"""Spatial trees (lagrange.tree, lagrange.joints, lagrange.spatial) against MuJoCo C, finite differences and
+"""Spatial trees (lagrange.model.tree, lagrange.model.joints, lagrange.rbda) against MuJoCo C, finite differences and
 conservation laws.
 
 - Every 3-D model users hold (Gymnasium's ant, humanoid, humanoidstandup and pusher; dm_control's humanoid, humanoid_CMU
@@ -29,8 +29,8 @@ import pytest
 
 import lagrange as lg
 from lagrange.interop.mjcf import from_mjcf, to_mjcf
-from lagrange.joints import Ball, Free, Hinge, Slide
-from lagrange.tree import Body, Motor, Tree
+from lagrange.model.joints import Ball, Free, Hinge, Slide
+from lagrange.model.tree import Body, Motor, Tree
 from tests.helpers import ROOT, mujoco_terms, rel
 
 EXACT = 1e-10

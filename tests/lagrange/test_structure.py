@@ -45,7 +45,7 @@ def live_eqns(jaxpr):
 class Traced:
     """The live equations of ``forward_dynamics(chain, q, qd, u, check=False)`` and its input variables: the program of
     the dynamics, without the run-time checks of traced parameters and pivots (``check=True``), which are
-    :func:`lagrange.checks.check_parameters`' and ``tests/lagrange/test_chain.py``'s concern."""
+    :func:`lagrange.model.checks.check_parameters`' and ``tests/lagrange/test_chain.py``'s concern."""
 
     def __init__(self, chain):
         self.chain = chain
@@ -214,7 +214,7 @@ STRUCTURES = {
 @pytest.mark.parametrize("name", list(STRUCTURES))
 def test_no_negation_reaches_xla(name):
     """Every sign of the derivation is folded while tracing, into a constant factor or by turning an addition into
-    a subtraction (``lagrange._scalar.negated``): no ``neg`` is left in the forward dynamics, and no ``negate`` in
+    a subtraction (``lagrange.math.scalar.negated``): no ``neg`` is left in the forward dynamics, and no ``negate`` in
     the compiled batched RK4 rollout. A negate in a fused RK4 stage can cost it its vectorization on the CPU
     (``python -m research.xla_vectorization``: the cartpole's closed form 1.5-1.9x slower with one)."""
     chain = STRUCTURES[name]
@@ -260,7 +260,7 @@ def _bump_mass(chain, k, h):
 
 
 def test_symbolic_signs_are_exact():
-    """``lagrange._scalar`` keeps signs symbolic. Negation commutes exactly with IEEE rounding, so every combination
+    """``lagrange.math.scalar`` keeps signs symbolic. Negation commutes exactly with IEEE rounding, so every combination
     of ``negated``, ``neg``, ``add``, ``sub``, ``mul`` and ``div`` over constants, arrays and negated arrays, two levels
     deep and materialised by ``as_array``, equals the same arithmetic done eagerly with ``jax.numpy`` to the last bit
     (not NumPy's: XLA divides by a constant as a multiplication by its reciprocal)."""
@@ -268,7 +268,7 @@ def test_symbolic_signs_are_exact():
 
     import numpy as np
 
-    from lagrange import _scalar as s
+    from lagrange.math import scalar as s
 
     rng = np.random.default_rng(0)
     x, y = jnp.asarray(rng.standard_normal(7)), jnp.asarray(rng.standard_normal(7) + 3.0)

@@ -15,13 +15,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from lagrange.chain import WORLD, Chain, Link
-from lagrange.contact import PenaltyContact
-from lagrange.limits import PenaltyLimits
+from lagrange.model.contact import PenaltyContact
+from lagrange.model.limits import PenaltyLimits
 from lagrange.interop.mjcf.refusals import (element_name, geom_points, ground_geoms, ground_plane, is_limited,
                                             refuse)
 from lagrange.interop.mjcf.runtime import compile_model, import_mujoco
 from lagrange.interop.mjcf.tree_reader import tree_from_model
-from lagrange.tree import Tree
+from lagrange.model.tree import Tree
 
 LIMITS = ("raise", "ignore")
 """What :func:`from_mjcf` does with a limited joint: refuse the model, or load it without the limit."""
@@ -113,7 +113,7 @@ def from_mjcf(source, *, limits: str | PenaltyLimits = "raise", contact: str | P
 
     A model whose joints are all hinges and slides moving in one plane is read as a planar
     :class:`~lagrange.chain.Chain` (below); any other (ball or free joints, hinges about several axes, a URDF arm)
-    as a :class:`~lagrange.tree.Tree` (:func:`~lagrange.interop.mjcf.tree_reader.tree_from_model`: body for body,
+    as a :class:`~lagrange.model.tree.Tree` (:func:`~lagrange.interop.mjcf.tree_reader.tree_from_model`: body for body,
     joint for joint); ``tree=True`` reads a planar model as a tree too. A URDF file is compiled by MuJoCo as it
     compiles any ``<robot>``: its root welded to the world.
 
@@ -155,7 +155,7 @@ def from_mjcf(source, *, limits: str | PenaltyLimits = "raise", contact: str | P
             refuse).
 
     Returns:
-        The :class:`~lagrange.chain.Chain` or :class:`~lagrange.tree.Tree` (float64 where JAX's x64 is enabled).
+        The :class:`~lagrange.chain.Chain` or :class:`~lagrange.model.tree.Tree` (float64 where JAX's x64 is enabled).
 
     Raises:
         ImportError: without MuJoCo (``pip install -e ".[mjcf]"``).

@@ -84,7 +84,7 @@ def mujoco_rollout(source, q0, qd0, controls):
 
 
 def solver_of(source):
-    """The :mod:`lagrange.solvers` integrator that reproduces a model's ``mj_step``, and its time step.
+    """The :mod:`lagrange.integrate.solvers` integrator that reproduces a model's ``mj_step``, and its time step.
 
     MuJoCo's ``Euler`` (damping implicit, as ``eulerdamp`` leaves it) is :class:`lagrange.SemiImplicitEuler`; its
     ``RK4`` is :class:`lagrange.RK4`.
@@ -99,7 +99,7 @@ def solver_of(source):
         NotImplementedError: for ``implicit``, ``implicitfast``, and ``Euler`` with ``eulerdamp`` disabled on a
             damped model, which have no counterpart.
     """
-    from lagrange.solvers import RK4, SemiImplicitEuler
+    from lagrange.integrate.solvers import RK4, SemiImplicitEuler
 
     mujoco = import_mujoco()
     model = compile_model(source)

@@ -1,21 +1,21 @@
-"""Reading a 3-D MJCF model (or URDF, through MuJoCo's compiler) as a spatial :class:`~lagrange.tree.Tree`.
+"""Reading a 3-D MJCF model (or URDF, through MuJoCo's compiler) as a spatial :class:`~lagrange.model.tree.Tree`.
 
 The compiled ``mujoco.MjModel`` maps one to one: a body per body (its ``pos``, ``quat``, mass, centre of mass and
 inertia turned by ``iquat``), its joints in order with their axes, anchors, ``ref`` (``qpos0``), damping, armature and
-springs, and a :class:`~lagrange.tree.Motor` per motor (``gear * gain``, ``ctrlrange`` where ``ctrllimited``), so that
-``q``, ``qd`` and ``u`` are ``qpos``, ``qvel`` and ``ctrl``.
+springs, and a :class:`~lagrange.model.tree.Motor` per motor (``gear * gain``, ``ctrlrange`` where ``ctrllimited``), so
+that ``q``, ``qd`` and ``u`` are ``qpos``, ``qvel`` and ``ctrl``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from lagrange._spatial import quat_to_matrix
-from lagrange.contact import PenaltyContact
+from lagrange.math.spatial import quat_to_matrix
+from lagrange.model.contact import PenaltyContact
 from lagrange.interop.mjcf.refusals import element_name, geom_points, ground_geoms, ground_plane, is_limited
-from lagrange.joints import Ball, Free, Hinge, Slide
-from lagrange.limits import PenaltyLimits
-from lagrange.tree import Body, Motor, Tree
+from lagrange.model.joints import Ball, Free, Hinge, Slide
+from lagrange.model.limits import PenaltyLimits
+from lagrange.model.tree import Body, Motor, Tree
 
 __all__ = ["tree_from_model"]
 
@@ -68,7 +68,7 @@ def _contacts(mujoco, model):
 
 
 def tree_from_model(mujoco, model, limits="ignore", contact="ignore") -> Tree:
-    """The :class:`~lagrange.tree.Tree` of a compiled ``mujoco.MjModel`` (its refusals already made by the
+    """The :class:`~lagrange.model.tree.Tree` of a compiled ``mujoco.MjModel`` (its refusals already made by the
     caller: :func:`lagrange.interop.mjcf.from_mjcf`), with ``PenaltyLimits`` on its limited hinges and slides and
     ``PenaltyContact`` on the geoms that can touch its ground where those are given."""
     points, height = _contacts(mujoco, model) if isinstance(contact, PenaltyContact) else ({}, 0.0)

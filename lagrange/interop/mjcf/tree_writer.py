@@ -1,4 +1,5 @@
-"""Writing a spatial :class:`~lagrange.tree.Tree` as MJCF, so that ``from_mjcf(to_mjcf(tree))`` gives the tree back.
+"""Writing a spatial :class:`~lagrange.model.tree.Tree` as MJCF, so that ``from_mjcf(to_mjcf(tree))`` gives the tree
+back.
 
 One ``<body>`` per body, nested in its parent's, at its ``pos`` and ``quat``; an explicit ``<inertial>`` (the centre of
 mass, the mass and ``fullinertia``, ``inertiafromgeom="false"``); its joints in order (``hinge`` and ``slide`` with
@@ -13,8 +14,8 @@ from __future__ import annotations
 import jax
 import numpy as np
 
-from lagrange.joints import Ball, Free, Hinge, Slide
-from lagrange.tree import WORLD, Tree
+from lagrange.model.joints import Ball, Free, Hinge, Slide
+from lagrange.model.tree import WORLD, Tree
 
 __all__ = ["tree_mjcf"]
 

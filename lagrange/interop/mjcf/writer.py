@@ -51,7 +51,7 @@ import numpy as np
 
 from lagrange.chain import Chain
 from lagrange.interop.mjcf.tree_writer import tree_mjcf
-from lagrange.tree import Tree
+from lagrange.model.tree import Tree
 
 INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
 """The MuJoCo integrators :func:`to_mjcf` accepts (Brax loads only ``"Euler"``)."""
@@ -87,13 +87,13 @@ def to_mjcf(
 ) -> str:
     """The chain or tree as an MJCF model string, for ``mujoco.MjModel.from_xml_string`` or ``brax.io.mjcf.loads``.
 
-    A :class:`~lagrange.tree.Tree` is written body for body (:mod:`~lagrange.interop.mjcf.tree_writer`), so that
+    A :class:`~lagrange.model.tree.Tree` is written body for body (:mod:`~lagrange.interop.mjcf.tree_writer`), so that
     :func:`~lagrange.interop.mjcf.from_mjcf` reads it back (``tree=True`` for a planar one); ``radius`` then has no
     use (no geoms are written).
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain` or :class:`~lagrange.tree.Tree` (concrete parameters, not traced).
-        timestep: MuJoCo's ``option/timestep`` [s], finite and > 0.
+        chain: the :class:`~lagrange.chain.Chain` or :class:`~lagrange.model.tree.Tree` (concrete parameters, not
+        traced). timestep: MuJoCo's ``option/timestep`` [s], finite and > 0.
         integrator: one of ``"Euler"`` (MuJoCo's semi-implicit Euler, the one Brax loads and
             :class:`lagrange.SemiImplicitEuler` reproduces), ``"RK4"``, ``"implicit"``,
             ``"implicitfast"``.
@@ -108,7 +108,7 @@ def to_mjcf(
         ``qvel`` and ``ctrl`` line up with ``q``, ``qd`` and ``u``.
     """
     if not isinstance(chain, (Chain, Tree)):
-        raise TypeError(f"chain must be a lagrange.chain.Chain or a lagrange.tree.Tree, got {type(chain).__name__}")
+        raise TypeError(f"chain must be a lagrange.chain.Chain or a lagrange.Tree, got {type(chain).__name__}")
     if isinstance(timestep, bool) or not isinstance(timestep, (int, float, np.floating, np.integer)):
         raise TypeError(f"timestep must be a positive real number of seconds, got {timestep!r}")
     if not (math.isfinite(float(timestep)) and float(timestep) > 0):

@@ -21,7 +21,7 @@ import pytest
 
 import lagrange as lg
 from lagrange.interop.mjcf import from_mjcf, mujoco_rollout, solver_of, to_mjcf
-from lagrange.tree import Tree
+from lagrange.model.tree import Tree
 from tests.helpers import mujoco_terms, rel
 
 EXACT = 1e-10

@@ -1,0 +1,44 @@
+"""Actuation: the controls' clamp into each motor's range, and the actuation matrix ``B``."""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, ArrayLike, Float
+
+from lagrange.chain import Chain
+from lagrange.model.tree import Tree
+
+
+def clamp_controls(chain: Chain | Tree, u: Float[ArrayLike, "*batch m"]) -> Float[Array, "*batch m"]:
+    """Each control clamped into its joint's ``control_range``, as MuJoCo clamps a limited ``ctrl``.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain` or :class:`~lagrange.model.tree.Tree`.
+        u: controls, shape ``(*batch, m)``.
+
+    Returns:
+        The clamped controls, shape ``(*batch, m)``; ``u`` itself for a chain without ranges.
+    """
+    if chain.control_ranges is None:
+        return u
+    inf = float("inf")
+    lo = np.array([-inf if r is None else r[0] for r in chain.control_ranges])
+    hi = np.array([inf if r is None else r[1] for r in chain.control_ranges])
+    return jnp.clip(u, lo.astype(u.dtype), hi.astype(u.dtype))
+
+
+def actuation_matrix(chain: Chain | Tree) -> Float[Array, "n m"]:
+    """The actuation matrix ``B``: ``B[actuated[k], k] = gear[k]``, zero elsewhere.
+
+    Args:
+        chain: the :class:`~lagrange.chain.Chain`.
+
+    Returns:
+        ``B``, shape ``(n, m)``. A chain with control ranges applies ``B`` to the clamped control
+        (:func:`clamp_controls`).
+    """
+    B = jnp.zeros((chain.n, chain.m), dtype=jnp.result_type(float) if chain.gear is None else chain.gear.dtype)
+    for k, j in enumerate(chain.actuated):
+        B = B.at[j, k].set(chain.gear[k])
+    return B

@@ -1,0 +1,238 @@
+"""One control interval of a chain or tree: the solvers' steps, fixed or adaptive, on the coordinates' manifold.
+
+Fixed-step explicit Runge-Kutta solvers run from their diffrax Butcher tableau, unrolled, zero coefficients and unused
+stages dropped while tracing; a tree's coordinates move through its joints (quaternions by the exponential map: the
+stage and final coordinates from the step's start by the weighted velocity sum, MuJoCo's ``mj_RungeKutta``).
+Semi-implicit Euler is MuJoCo's, Brax's and DFlex's step; symplectic Euler in momenta (MomentumEuler) runs on planar
+chains. Adaptive steps and diffrax adjoints run each interval through ``diffrax.diffeqsolve``. :func:`lagrange.simulate`
+and :func:`lagrange.step` check the arguments and call :func:`interval_map`.
+"""
+
+from __future__ import annotations
+
+import diffrax
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from lagrange import rbda as spatial
+from lagrange.math.linalg import spd_solver
+from lagrange.forces import actuation_matrix, clamp_controls
+from lagrange.chain import Chain
+from lagrange.dynamics import bias_forces, energy, forward_dynamics, gravity_forces, mass_matrix
+from lagrange.integrate.solvers import MomentumEuler, SemiImplicitEuler, is_adaptive_capable
+from lagrange.model.tree import Tree
+
+__all__ = ["interval_map"]
+
+
+def _move(chain, q, v, h):
+    """``q`` moved by the velocities ``v`` for ``h`` seconds: ``q + h v``, or on a tree's joint manifold (its
+    quaternions by the exponential map, kept unit: :func:`lagrange.rbda.integrate_positions`)."""
+    if isinstance(chain, Tree):
+        return spatial.integrate_positions(chain, q, v, h)
+    return q + h * v
+
+
+def _needed_stages(tableau) -> list[bool]:
+    b = np.asarray(tableau.b_sol)
+    s = len(b)
+    need = [bool(b[i] != 0) for i in range(s)]
+    for i in reversed(range(1, s)):
+        if need[i]:
+            for j, a in enumerate(np.asarray(tableau.a_lower[i - 1])):
+                if a != 0:
+                    need[j] = True
+    return need
+
+
+def _axpy(y, h, coeffs, ks):
+    """y + h * sum_j coeffs[j] * ks[j], skipping zero coefficients (tuples of arrays)."""
+    out = list(y)
+    for c, k in zip(coeffs, ks):
+        c = float(c)
+        if c == 0.0:
+            continue
+        w = h * c
+        out = [o + w * kk for o, kk in zip(out, k)]
+    return tuple(out)
+
+
+def _erk_step(f, tableau, h, y, chain=None):
+    if isinstance(chain, Tree):
+        return _rkmk_step(chain, f, tableau, h, y)
+    need = _needed_stages(tableau)
+    ks = [None] * len(need)
+    for i, needed in enumerate(need):
+        if not needed:
+            continue
+        yi = y if i == 0 else _axpy(y, h, tableau.a_lower[i - 1], ks[:i])
+        ks[i] = f(yi)
+    return _axpy(y, h, tableau.b_sol, ks)
+
+
+def _weighted(coeffs, xs):
+    """``sum_j c_j x_j`` over the non-zero ``c_j`` (``None`` when there is none)."""
+    terms = [float(c) * x for c, x in zip(coeffs, xs) if float(c) != 0.0]
+    return sum(terms[1:], terms[0]) if terms else None
+
+
+def _rkmk_step(tree, f, tableau, h, y):
+    """An explicit Runge-Kutta step on a tree's coordinates (Runge-Kutta-Munthe-Kaas): every stage at
+    ``q0 exp(h d_i)`` with ``d_i = sum_j a_ij K_j``, ``K_j`` stage ``j``'s velocity as the rate of its tangent
+    increment (:func:`lagrange.rbda.dexpinv`; the velocity itself for hinges, slides and positions), the step to
+    ``q0 exp(h sum_j b_j K_j)``; velocities as in a vector space. It keeps the method's order on the quaternions
+    (MuJoCo's ``mj_RungeKutta``, the same without ``dexpinv``, is second order in the rotations: measured in
+    ``tests/lagrange/test_spatial.py``)."""
+    q0, qd0 = y
+    need = _needed_stages(tableau)
+    K, acc = [None] * len(need), [None] * len(need)
+    for i, needed in enumerate(need):
+        if not needed:
+            continue
+        if i == 0:
+            K[0], acc[0] = f(y)
+            continue
+        a = tableau.a_lower[i - 1]
+        d, dv = _weighted(a, K[:i]), _weighted(a, acc[:i])
+        qi = q0 if d is None else spatial.integrate_positions(tree, q0, d, h)
+        v, acc[i] = f((qi, qd0 if dv is None else qd0 + h * dv))
+        K[i] = v if d is None else spatial.dexpinv(tree, h * d, v)
+    d, dv = _weighted(tableau.b_sol, K), _weighted(tableau.b_sol, acc)
+    return spatial.integrate_positions(tree, q0, d, h), qd0 + h * dv
+
+
+def _momentum_euler_step(chain: Chain, iterations: int, h, q, qd, u):
+    """One step of :class:`lagrange.MomentumEuler` (see its docstring for the scheme)."""
+    M = mass_matrix(chain, q)
+    p = jnp.einsum("...ij,...j->...i", M, qd)
+    force = -gravity_forces(chain, q)
+    if chain.stiffness is not None:  # the joint springs, a potential force like gravity
+        force = force - chain.stiffness * (q - chain.springref)
+    if u is not None and chain.m:
+        force = force + jnp.einsum("ij,...j->...i", actuation_matrix(chain), u)
+    A = M if chain.damping is None else M + h * jnp.diag(chain.damping)
+    solve = spd_solver(A)
+    # dT/dq at fixed v; the sum over a batch leaves each state's gradient its own
+    dkin_dq = jax.grad(lambda q_, v: jnp.sum(energy(chain, q_, v)[0]))
+    v = qd
+    for _ in range(iterations):
+        v = solve(p + h * (force + dkin_dq(q, v)))
+    q1 = q + h * v
+    p1 = jnp.einsum("...ij,...j->...i", M, v)
+    return q1, spd_solver(mass_matrix(chain, q1))(p1)
+
+
+def _fixed_substep(chain: Chain, solver, h, q, qd, u):
+    if isinstance(solver, MomentumEuler):
+        return _momentum_euler_step(chain, solver.iterations, h, q, qd, u)
+    if isinstance(solver, SemiImplicitEuler):
+        qdd = forward_dynamics(chain, q, qd, u, implicit_damping_dt=h if solver.implicit_damping else None,
+                               check=False)
+        qd1 = qd + h * qdd
+        return _move(chain, q, qd1, h), qd1
+
+    def f(y):
+        return (y[1], forward_dynamics(chain, y[0], y[1], u, check=False))
+
+    if isinstance(solver, diffrax.Euler):
+        qdd = f((q, qd))[1]
+        return _move(chain, q, qd, h), qd + h * qdd
+    return _erk_step(f, solver.tableau, h, (q, qd), chain)
+
+
+def _held_mass_matrix_interval(chain: Chain, solver: SemiImplicitEuler, h, substeps: int):
+    """Semi-implicit Euler with ``M`` (``+ h diag(damping)`` with implicit damping) formed and Cholesky-factored once
+    at the interval's start and used by every substep; the forces ``B u - bias`` of every substep's own state. (An
+    LDL^T unrolled over the entries ran as fast and compiled 4x longer for the cheetah's 9 dof.)"""
+
+    def interval(q, qd, u):
+        M = mass_matrix(chain, q)
+        if solver.implicit_damping and chain.damping is not None:
+            M = M + h * jnp.diag(chain.damping)
+        solve = spd_solver(M)
+        Bu = 0.0 if u is None or not chain.m else jnp.einsum("ij,...j->...i", actuation_matrix(chain),
+                                                             clamp_controls(chain, u))
+
+        def body(carry, _):
+            q, qd = carry
+            qdd = solve(Bu - bias_forces(chain, q, qd))
+            qd1 = qd + h * qdd
+            return (_move(chain, q, qd1, h), qd1), None
+
+        return jax.lax.scan(_remat(solver, body), (q, qd), None, length=substeps)[0]
+
+    return interval
+
+
+def _remat(solver, body):
+    """``body`` recomputed in the backward pass when the solver asks for it (``checkpoint_substeps``)."""
+    return jax.checkpoint(body) if isinstance(solver, SemiImplicitEuler) and solver.checkpoint_substeps else body
+
+
+def interval_map(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps):
+    """The map ``(q, qd, u) -> (q, qd)`` over one control interval of ``dt`` seconds (the arguments as
+    :func:`lagrange.simulate` takes them, checked there)."""
+    adaptive = rtol is not None or atol is not None
+    if adaptive:
+        if rtol is None or atol is None:
+            raise ValueError("adaptive stepping needs both rtol and atol (positive floats), got only one")
+        if not (rtol > 0 and atol > 0):
+            raise ValueError(f"rtol and atol must be > 0, got rtol={rtol}, atol={atol}")
+        if not is_adaptive_capable(solver):
+            raise ValueError(
+                f"{type(solver).__name__} has no embedded error estimate, so rtol/atol cannot be used; "
+                "use Tsit5(), Dopri5() or Dopri8() for adaptive steps, or drop rtol/atol"
+            )
+    if isinstance(chain, Tree) and isinstance(solver, MomentumEuler):
+        raise NotImplementedError("MomentumEuler runs on planar chains only (its canonical momenta assume nq = nv); "
+                                  "use SemiImplicitEuler, RK4 or an adaptive solver for a lagrange.model.tree.Tree")
+    if isinstance(solver, (SemiImplicitEuler, MomentumEuler)) and adjoint is not None:
+        raise ValueError(f"{type(solver).__name__} runs outside diffeqsolve; pass adjoint=None")
+    h = dt / substeps
+
+    if isinstance(solver, SemiImplicitEuler) and solver.hold_mass_matrix:
+        return _held_mass_matrix_interval(chain, solver, h, substeps)
+
+    if not adaptive and adjoint is None:
+
+        def interval(q, qd, u):
+            if substeps == 1:
+                return _fixed_substep(chain, solver, h, q, qd, u)
+
+            def body(carry, _):
+                return _fixed_substep(chain, solver, h, *carry, u), None
+
+            return jax.lax.scan(_remat(solver, body), (q, qd), None, length=substeps)[0]
+
+        return interval
+
+    if isinstance(chain, Tree):  # the coordinates in R^nq, dq/dt from the joints; the quaternions renormalised
+        term = diffrax.ODETerm(lambda t, y, u: (spatial.position_derivative(chain, y[0], y[1]),
+                                                forward_dynamics(chain, y[0], y[1], u, check=False)))
+    else:
+        term = diffrax.ODETerm(lambda t, y, u: (y[1], forward_dynamics(chain, y[0], y[1], u, check=False)))
+    controller = (
+        diffrax.PIDController(rtol=rtol, atol=atol) if adaptive else diffrax.ConstantStepSize()
+    )
+    adj = adjoint if adjoint is not None else diffrax.RecursiveCheckpointAdjoint()
+
+    def interval(q, qd, u):
+        t = jnp.result_type(q, qd)  # times in the state's dtype: float64 ones would promote a float32 state
+        sol = diffrax.diffeqsolve(
+            term,
+            solver,
+            jnp.asarray(0.0, t),
+            jnp.asarray(dt, t),
+            jnp.asarray(h, t),
+            (q, qd),
+            args=u,
+            stepsize_controller=controller,
+            adjoint=adj,
+            saveat=diffrax.SaveAt(t1=True),
+            max_steps=max_steps if adaptive else substeps,
+        )
+        q1 = sol.ys[0][0]
+        return spatial.normalize_quaternions(chain, q1) if isinstance(chain, Tree) else q1, sol.ys[1][0]
+
+    return interval

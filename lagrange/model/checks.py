@@ -1,0 +1,404 @@
+"""Checks of a model's parameters: at construction (types, signs, shapes, finite values, a joint that moves nothing,
+which :class:`lagrange.chain.Link` and :class:`lagrange.chain.Chain` run) and after it (:func:`check_parameters`, for
+parameters set by ``eqx.tree_at`` or traced under ``jit``/``grad``, which the dynamics run); and the stacking of
+per-link values into a chain's arrays without any JAX computation.
+"""
+
+from __future__ import annotations
+
+import math
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+__all__ = ["check_parameters"]
+
+
+def concrete(x):
+    """The value of ``x`` as a NumPy array, or ``None`` if it is traced (not known yet)."""
+    if isinstance(x, jax.core.Tracer):
+        return None
+    try:
+        return np.asarray(x, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise TypeError(f"expected a real number, got {x!r} of type {type(x).__name__}") from err
+
+
+def check_scalar(name: str, value, *, positive: bool = False, nonnegative: bool = False, optional: bool = False):
+    if value is None:
+        if optional:
+            return None
+        raise TypeError(f"Link.{name} must be a real number, got None")
+    if isinstance(value, (bool, np.bool_)) or isinstance(value, str):
+        raise TypeError(f"Link.{name} must be a real number, got {value!r}")
+    try:
+        c = concrete(value)
+    except TypeError as err:
+        raise TypeError(f"Link.{name} must be a real number, got {value!r}") from err
+    if c is None:
+        return value
+    if c.shape != ():
+        raise ValueError(f"Link.{name} must be a scalar, got an array of shape {c.shape}")
+    v = float(c)
+    if not math.isfinite(v):
+        raise ValueError(f"Link.{name} must be finite, got {v}")
+    if positive and v <= 0:
+        raise ValueError(f"Link.{name} must be > 0, got {v}")
+    if nonnegative and v < 0:
+        raise ValueError(f"Link.{name} must be >= 0, got {v}")
+    return value
+
+
+def check_array(name: str, value, shape: tuple[int, ...] = (), *, nonnegative: bool = False):
+    """``value`` as a JAX array of the default float type and of ``shape`` (transferred from NumPy when concrete: no
+    JAX computation), checked real, finite and, with ``nonnegative``, ``>= 0``; a traced value is checked for its
+    shape only (:func:`check_parameters`-style checks see it when it is known). Errors name ``name``.
+
+    Raises:
+        TypeError: for ``None``, a bool, a string or anything that is not real numbers.
+        ValueError: for another shape, a non-finite entry or a negative one where ``nonnegative``.
+    """
+    what = "a real number" if shape == () else f"real numbers of shape {shape}"
+    if value is None or isinstance(value, (bool, np.bool_, str)):
+        raise TypeError(f"{name} must be {what}, got {value!r}")
+    if isinstance(value, jax.core.Tracer):
+        if jnp.shape(value) != shape:
+            raise ValueError(f"{name} must have shape {shape}, got {jnp.shape(value)}")
+        return value
+    try:
+        c = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise TypeError(f"{name} must be {what}, got {value!r}") from err
+    if c.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {c.shape}")
+    if not np.all(np.isfinite(c)):
+        raise ValueError(f"{name} must be finite, got {c.tolist()}")
+    if nonnegative and np.any(c < 0):
+        raise ValueError(f"{name} must be >= 0, got {c.tolist()}")
+    return jax.device_put(c.astype(jax.dtypes.canonicalize_dtype(float)))
+
+
+def check_pair(name: str, value, owner: str = "Link") -> tuple[float, float] | None:
+    """``None`` or ``(lo, hi)`` as floats with ``lo < hi``, both finite, else an error naming ``owner.name``."""
+    if value is None:
+        return None
+    try:
+        lo, hi = (float(x) for x in value)
+    except (TypeError, ValueError) as err:
+        raise TypeError(f"{owner}.{name} must be a pair (lower, upper) of numbers or None, got {value!r}") from err
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise ValueError(f"{owner}.{name} must be finite with lower < upper, got {value!r}")
+    return lo, hi
+
+
+def check_points(name: str, value, owner: str = "Link", coords: tuple[str, ...] = ("x", "z")) -> tuple[tuple, ...]:
+    """A sequence of points ``(*coords, radius)`` as tuples of floats (finite, radius >= 0), else an error naming
+    ``owner.name``: a chain's ``(x, z, radius)``, a body's ``(x, y, z, radius)``."""
+    fields = ", ".join(coords + ("radius",))
+    count = {3: "three", 4: "four"}[len(coords) + 1]
+    try:
+        points = tuple(tuple(float(c) for c in p) for p in value)
+    except (TypeError, ValueError) as err:
+        raise TypeError(f"{owner}.{name} must be a sequence of points ({fields}), got {value!r}") from err
+    for k, p in enumerate(points):
+        if len(p) != len(coords) + 1:
+            raise ValueError(f"{owner}.{name}[{k}] must be a point ({fields}) of {count} numbers, got {p!r}")
+        if not all(math.isfinite(c) for c in p) or p[-1] < 0:
+            raise ValueError(f"{owner}.{name}[{k}] must be finite with radius >= 0, got {p!r}")
+    return points
+
+
+def check_point(name: str, value) -> None:
+    """``None`` or a pair of finite reals (a point ``(x, z)``), else a ``TypeError``/``ValueError`` naming ``name``."""
+    if value is None:
+        return
+    if isinstance(value, (str, bool, np.bool_)):
+        raise TypeError(f"Link.{name} must be a point (x, z) of two real numbers or None, got {value!r}")
+    if isinstance(value, jax.core.Tracer):
+        if jnp.shape(value) != (2,):
+            raise ValueError(f"Link.{name} must be a point (x, z) of shape (2,), got shape {jnp.shape(value)}")
+        return
+    try:
+        c = np.asarray([0.0 if isinstance(v, jax.core.Tracer) else concrete(v) for v in list(value)], dtype=float)
+    except (TypeError, ValueError) as err:
+        raise TypeError(f"Link.{name} must be a point (x, z) of two real numbers or None, got {value!r}") from err
+    if c.shape != (2,):
+        raise ValueError(f"Link.{name} must be a point (x, z) of two real numbers, got shape {c.shape}")
+    if not np.all(np.isfinite(c)):
+        raise ValueError(f"Link.{name} must be finite, got {value!r}")
+
+
+def check_laws(contact, limits, contact_links: tuple[int, ...], limited: tuple[int, ...]) -> None:
+    """A chain's contact and limit laws: of their types, given exactly when some link has contact points (a range),
+    else an error naming the links and the way out."""
+    from lagrange.model.contact import PenaltyContact
+    from lagrange.model.limits import PenaltyLimits
+
+    if contact is not None and not isinstance(contact, PenaltyContact):
+        raise TypeError(f"Chain.contact must be a lagrange.PenaltyContact or None, got {type(contact).__name__}")
+    if limits is not None and not isinstance(limits, PenaltyLimits):
+        raise TypeError(f"Chain.limits must be a lagrange.PenaltyLimits or None, got {type(limits).__name__}")
+    if (contact is None) != (not contact_links):
+        raise ValueError(
+            f"Chain: links {sorted(set(contact_links))} have contact points but the chain has no contact "
+            "law: pass Chain(..., contact=lagrange.PenaltyContact(ke, kd, kf, mu)), or drop the points"
+            if contact is None else
+            "Chain.contact is given but no link has contact points: give links Link(..., contacts=[(x, z, "
+            "radius), ...]), or drop contact")
+    if (limits is None) != (not limited):
+        raise ValueError(
+            f"Chain: links {list(limited)} have a range but the chain has no limit law: pass "
+            "Chain(..., limits=lagrange.PenaltyLimits(ke, kd)), or drop the ranges"
+            if limits is None else
+            "Chain.limits is given but no link has a range: give links Link(..., range=(lower, upper)), or drop "
+            "limits")
+
+
+def check_parents(links: tuple) -> tuple[int, ...]:
+    """Each link's parent index (-1: the world), checked to be the world or a link listed before it."""
+    out = []
+    for i, lk in enumerate(links):
+        p = i - 1 if lk.parent is None else lk.parent
+        if not -1 <= p < i:
+            raise ValueError(
+                f"Chain.links[{i}].parent must be -1 (the world) or the index of a link listed before it (0..{i - 1}), "
+                f"got {p}: list every link after its parent (which also rules out cycles)"
+            )
+        out.append(p)
+    return tuple(out)
+
+
+def is_zero(x) -> bool:
+    c = concrete(x)
+    return c is not None and float(c) == 0.0
+
+
+def value_of(x):
+    """``x`` as a NumPy array if it is concrete (so that arithmetic on it is not a JAX operation), else as it is."""
+    return x if isinstance(x, jax.core.Tracer) else np.asarray(x)
+
+
+def stack(values, dtype):
+    """Per-link scalars (or one scalar) as a JAX array of ``dtype``: stacked in NumPy and transferred when every
+    value is concrete, which runs no JAX computation; with ``jax.numpy`` when one is traced."""
+    if isinstance(values, (list, tuple)):
+        if any(isinstance(v, jax.core.Tracer) for v in values):
+            return jnp.stack([jnp.asarray(v, dtype=dtype) for v in values])
+        return jax.device_put(np.stack([np.asarray(v, dtype=dtype) for v in values]))
+    if isinstance(values, jax.core.Tracer):
+        return jnp.asarray(values, dtype=dtype)
+    return jax.device_put(np.asarray(values, dtype=dtype))
+
+
+def stack_points(points, dtype):
+    """Points ``(x, z)`` as a JAX array ``(k, 2)`` of ``dtype``, like :func:`_stack` (NumPy when all are concrete)."""
+    traced = any(isinstance(v, jax.core.Tracer) for v in points)
+    if traced or any(any(isinstance(c, jax.core.Tracer) for c in v) for v in points):
+        return jnp.stack([jnp.stack([jnp.asarray(c, dtype=dtype) for c in v]) if not isinstance(v, jax.core.Tracer)
+                          else jnp.asarray(v, dtype=dtype) for v in points])
+    return jax.device_put(np.stack([np.asarray([np.asarray(c, dtype=dtype) for c in v], dtype=dtype) for v in points]))
+
+
+def _on_axis(links: tuple, parents: tuple[int, ...], j: int, i: int, com) -> bool:
+    """Whether link ``i``'s centre of mass stays on revolute joint ``j``'s axis at every configuration: it sits on
+    its own joint (``com = 0``) and every joint on the path from ``j`` to it is revolute and sits on its parent's
+    joint (a parent of zero length, or an attach point at the parent's origin)."""
+    if com is None or float(com) != 0.0:
+        return False
+    k = i
+    while k != j:
+        p = parents[k]
+        attach = links[k].attach
+        at_origin = is_zero(links[p].length) if attach is None else all(is_zero(c) for c in attach)
+        if links[k].joint != "revolute" or not at_origin:
+            return False
+        k = p
+    return True
+
+
+def _subtree(parents: tuple[int, ...], j: int) -> list[int]:
+    """Link ``j`` and every link below it, in order."""
+    inside = {j}
+    for i in range(j + 1, len(parents)):
+        if parents[i] in inside:
+            inside.add(i)
+    return sorted(inside)
+
+
+def check_every_joint_moves_something(links: tuple, parents: tuple[int, ...]) -> None:
+    """Raise if a joint's diagonal entry of the mass matrix is zero at every configuration (then so is its
+    determinant). ``M_jj = sum_{i below j} (m_i |dc_i/dq_j|^2 + I_i [joint j revolute]) + armature_j`` (``i`` over
+    ``j``'s subtree, ``j`` included): a prismatic joint moves the mass of every link of its subtree
+    (``|dc_i/dq_j| = 1``); a revolute one moves their inertia and every mass off its axis. A sum of non-negative terms,
+    so it vanishes identically exactly when each term does. A parameter not known yet (traced) counts as non-zero.
+    Checked on the parameters alone, without computing ``M``."""
+    mass = [concrete(lk.mass) for lk in links]
+    length = [concrete(lk.length) for lk in links]
+    com = [length[i] / 2 if lk.com is None and length[i] is not None else concrete(lk.com)
+           for i, lk in enumerate(links)]
+    # a centre of mass off the link's line is off every joint's axis
+    com = [c if is_zero(lk.com_normal) else None for c, lk in zip(com, links)]
+    inertia = [
+        (mass[i] * length[i] ** 2 / 12 if mass[i] is not None and length[i] is not None else None)
+        if lk.inertia is None
+        else concrete(lk.inertia)
+        for i, lk in enumerate(links)
+    ]
+
+    def zero(x):
+        return x is not None and float(x) == 0.0
+
+    for j, joint in enumerate(links):
+        if not is_zero(joint.armature):
+            continue
+        tail = _subtree(parents, j)
+        if joint.joint == "prismatic":
+            if all(zero(mass[i]) for i in tail):
+                raise ValueError(
+                    f"Chain has a singular mass matrix: prismatic joint {j} moves no mass (links {tail} have zero "
+                    f"mass); give one of links {tail} a mass > 0 or joint {j} an armature > 0"
+                )
+            continue
+        massless = [i for i in tail if zero(mass[i]) and zero(inertia[i])]
+        on_axis = [i for i in tail if zero(inertia[i]) and not zero(mass[i]) and _on_axis(links, parents, j, i, com[i])]
+        if len(massless) + len(on_axis) == len(tail):
+            why = []
+            if massless:
+                why.append(f"links {massless} have zero mass and zero inertia")
+            if on_axis:
+                why.append(f"links {on_axis} have zero inertia and their centre of mass on joint {j}'s axis")
+            raise ValueError(
+                f"Chain has a singular mass matrix: revolute joint {j} moves no mass, inertia or armature "
+                f"({'; '.join(why)}); give one of links {tail} an inertia > 0 (or a mass off the joint's axis), "
+                f"or joint {j} an armature > 0"
+            )
+
+
+# what each parameter array must satisfy: (field, the rule's words, a predicate true where a value breaks it)
+_RULES = (
+    ("mass", ">= 0", lambda x: x < 0),
+    ("length", ">= 0", lambda x: x < 0),
+    ("inertia", ">= 0", lambda x: x < 0),
+    ("damping", ">= 0", lambda x: x < 0),
+    ("armature", ">= 0", lambda x: x < 0),
+    ("stiffness", ">= 0", lambda x: x < 0),
+    ("gear", "> 0", lambda x: ~(x > 0)),
+    ("com", "finite", lambda x: x != x),
+    ("com_normal", "finite", lambda x: x != x),
+    ("springref", "finite", lambda x: x != x),
+    ("attach", "finite", lambda x: x != x),
+    ("gravity", "finite", lambda x: x != x),
+    ("ranges", "finite", lambda x: x != x),
+    ("contact_points", "finite, radii >= 0", lambda x: (x < 0) & (np.arange(x.shape[-1]) == 2)),
+    ("contact.ke", "> 0", lambda x: ~(x > 0)),
+    ("contact.kd", ">= 0", lambda x: x < 0),
+    ("contact.kf", ">= 0", lambda x: x < 0),
+    ("contact.mu", ">= 0", lambda x: x < 0),
+    ("contact.ground", "finite", lambda x: x != x),
+    ("limits.ke", "> 0", lambda x: ~(x > 0)),
+    ("limits.kd", ">= 0", lambda x: x < 0),
+)
+
+
+def check_parameters(chain: eqx.Module, *, at_run_time: bool = True) -> eqx.Module:
+    """Check every parameter of a chain against its rule, including those that skipped the constructor.
+
+    The rules: masses, lengths, inertias, damping, armature and stiffness >= 0, gears > 0, the contact and limit
+    laws' parameters as their constructors require, everything finite. The parameters that did not pass through
+    :class:`lagrange.chain.Chain`'s constructor are those set by ``eqx.tree_at`` or traced under
+    ``jit``/``grad``/``vmap`` (a fit's parameters); every function of :mod:`lagrange.dynamics` calls this.
+
+    A concrete parameter is checked now, in NumPy; a traced one when it is computed, by ``eqx.branched_error_if``
+    tied to the returned chain's leaves (only with ``at_run_time=True``), which names the link. Either way the error
+    names the field, the link and the rule.
+
+    Args:
+        chain: the :class:`lagrange.chain.Chain`.
+        at_run_time: also check traced parameters at run time (a few comparisons per call).
+
+    Returns:
+        The chain (with the run-time checks tied to its traced parameters).
+
+    Raises:
+        ValueError: (now) for a concrete parameter that breaks its rule.
+        equinox.EquinoxRuntimeError: (when run) for a traced one.
+    """
+    if hasattr(chain, "bodies"):  # a spatial tree
+        return _check_tree(chain, at_run_time)
+    updates = {}
+    for field, rule, broken in _RULES:
+        x = _get(chain, field)
+        if x is None:
+            continue
+        if not isinstance(x, jax.core.Tracer):
+            v = np.asarray(x, dtype=float)
+            bad = broken(v) | ~np.isfinite(v)
+            if np.any(bad):
+                where = np.argwhere(bad)[0]
+                index = _index_words(chain, field, where)
+                raise ValueError(f"Chain.{field}{index} must be {_words(rule)}, got {float(v[tuple(where)])!r} "
+                                 "(a value set after construction: by eqx.tree_at, or traced)")
+        elif at_run_time:
+            bad = (broken(x) | ~jnp.isfinite(x)).reshape(-1)
+            cells = [_index_words(chain, field, np.unravel_index(k, jnp.shape(x))) for k in range(bad.size)]
+            messages = [f"Chain.{field}{c} must be {_words(rule)} (a value traced or set after construction breaks it)"
+                        for c in cells]
+            updates[field] = eqx.branched_error_if(x, jnp.any(bad), jnp.argmax(bad), messages or [""])
+    for field, value in updates.items():
+        chain = eqx.tree_at(lambda c: _get(c, field), chain, value)
+    return chain
+
+
+def _get(chain, field: str):
+    """``chain.a.b`` for ``field = "a.b"``; ``None`` where a part is ``None``."""
+    x = chain
+    for part in field.split("."):
+        x = None if x is None else getattr(x, part)
+    return x
+
+
+def _words(rule: str) -> str:
+    return rule if rule.startswith("finite") else f"{rule} and finite"
+
+
+def _index_words(chain, field: str, where) -> str:
+    """``[i] (link i)`` for a per-link entry; the link a gear or attach point belongs to; nothing for a scalar."""
+    where = tuple(int(w) for w in np.atleast_1d(where))
+    if not where:
+        return ""
+    if field == "gear":
+        return f"[{where[0]}] (link {chain.actuated[where[0]]})"
+    if field == "attach":
+        return f"[{where[0]}] (link {chain.attached[where[0]]})"
+    if field == "ranges":
+        return f"[{where[0]}] (link {chain.limited[where[0]]})"
+    if field == "contact_points":
+        return f"[{where[0]}] (link {chain.contact_links[where[0]]})"
+    return f"[{where[0]}] (link {where[0]})"
+
+
+_TREE_RULES = {"mass": (">= 0", lambda x: x < 0), "damping": (">= 0", lambda x: x < 0),
+               "armature": (">= 0", lambda x: x < 0), "stiffness": (">= 0", lambda x: x < 0),
+               "gear": ("> 0", lambda x: ~(x > 0))}
+
+
+def _check_tree(tree, at_run_time: bool):
+    """:func:`check_parameters` for a :class:`lagrange.model.tree.Tree`: every leaf finite, masses, damping, armature
+    and stiffness >= 0, gears > 0; errors name the leaf's path (``Tree.bodies[3].joints[0].damping``)."""
+    leaves, treedef = jax.tree_util.tree_flatten_with_path(tree)
+    out, changed = [], False
+    for path, x in leaves:
+        name = "Tree" + jax.tree_util.keystr(path)
+        rule, broken = _TREE_RULES.get(getattr(path[-1], "name", ""), ("finite", lambda v: v != v))
+        if not isinstance(x, jax.core.Tracer):
+            v = np.asarray(x, dtype=float)
+            if np.any(broken(v) | ~np.isfinite(v)):
+                raise ValueError(f"{name} must be {_words(rule)}, got {v.tolist()} (a value set after construction: "
+                                 "by eqx.tree_at, or traced)")
+        elif at_run_time:
+            x = eqx.error_if(x, jnp.any(broken(x) | ~jnp.isfinite(x)),
+                             f"{name} must be {_words(rule)} (a value traced or set after construction breaks it)")
+            changed = True
+        out.append(x)
+    return jax.tree_util.tree_unflatten(treedef, out) if changed else tree

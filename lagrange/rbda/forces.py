@@ -1,0 +1,98 @@
+"""The generalized forces beside the rigid-body dynamics of a spatial tree: the joints' dampers and springs (MuJoCo's
+``qfrc_passive``) and the motors (``qfrc_actuator``), as arrays ``(..., nv)``."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from lagrange.forces import actuation_matrix, clamp_controls
+from lagrange.model.joints import Free
+from lagrange.model.tree import Tree
+
+__all__ = ["actuation", "limit_energy", "limit_forces", "passive", "per_dof", "spring_potential"]
+
+
+def _zero(x) -> bool:
+    return not isinstance(x, jax.core.Tracer) and float(np.asarray(x)) == 0.0
+
+
+def per_dof(tree: Tree, field: str):
+    """A joint parameter (``"damping"``, ``"armature"``) repeated over each joint's velocities: ``(nv,)``, in NumPy
+    when concrete; ``None`` when it is exactly zero on every joint."""
+    values = [getattr(j, field) for j in tree.joints]
+    if all(_zero(v) for v in values):
+        return None
+    reps = [j.nv for j in tree.joints]
+    if any(isinstance(v, jax.core.Tracer) for v in values):
+        return jnp.concatenate([jnp.full((r,), v) for v, r in zip(values, reps)])
+    return np.repeat(np.array([float(np.asarray(v)) for v in values]), reps)
+
+
+def passive(tree: Tree, q, qd):
+    """``-damping qd - stiffness (q - springref)`` per dof (a ball's and a free joint's rotation: the rotation vector
+    from the rest quaternion), ``(..., nv)``, the springs only where ``q`` is given, the dampers where ``qd`` is;
+    ``None`` when the tree has neither."""
+    out = None
+    damping = per_dof(tree, "damping")
+    if qd is not None and damping is not None:
+        out = -jnp.asarray(damping, qd.dtype) * qd
+    if q is not None:
+        for link, j, d in _springs(tree, q):
+            force = jnp.zeros(q.shape[:-1] + (tree.nv,), q.dtype)
+            force = force.at[..., tree.vadr[link]: tree.vadr[link] + j.nv].set(-jnp.asarray(j.stiffness, d.dtype) * d)
+            out = force if out is None else out + force
+    return out
+
+
+def _springs(tree: Tree, q):
+    """``(link, joint, displacement (..., nv_j))`` of every joint with a spring (not exactly zero stiffness)."""
+    for link, j in enumerate(tree.joints):
+        if _zero(j.stiffness):
+            continue
+        ref = j.springref
+        if isinstance(j, Free) and ref is None:
+            b = tree.bodies[tree.joint_body[link]]
+            ref = jnp.concatenate([jnp.asarray(b.pos), jnp.asarray(b.quat)])
+        yield link, j, j.spring(q[..., tree.qadr[link]: tree.qadr[link] + j.nq], ref)
+
+
+def spring_potential(tree: Tree, q):
+    """The springs' ``1/2 stiffness |displacement|^2``, ``(...)``; ``None`` without springs."""
+    terms = [0.5 * j.stiffness * jnp.sum(d * d, axis=-1) for _, j, d in _springs(tree, q)]
+    return sum(terms[1:], terms[0]) if terms else None
+
+
+def actuation(tree: Tree, u):
+    """``B u``, ``u`` clamped into the motors' ranges first, ``(..., nv)``; ``None`` without control."""
+    if u is None or tree.m == 0:
+        return None
+    u = clamp_controls(tree, u)
+    return jnp.einsum("ij,...j->...i", actuation_matrix(tree).astype(u.dtype), u)
+
+
+def _limited(tree: Tree):
+    """``(coordinate indices, velocity indices, lower, upper)`` of the hinges and slides with a ``range``."""
+    idx = [k for k, j in enumerate(tree.joints) if j.range is not None]
+    lo = np.array([tree.joints[k].range[0] for k in idx])
+    hi = np.array([tree.joints[k].range[1] for k in idx])
+    return np.array([tree.qadr[k] for k in idx], int), np.array([tree.vadr[k] for k in idx], int), lo, hi
+
+
+def limit_forces(tree: Tree, q, qd):
+    """The limits' generalized forces ``(..., nv)`` (:class:`lagrange.PenaltyLimits`); ``None`` without limits."""
+    if tree.limits is None:
+        return None
+    qa, va, lo, hi = _limited(tree)
+    tau = tree.limits.forces(q[..., qa], qd[..., va], jnp.asarray(lo, q.dtype), jnp.asarray(hi, q.dtype))
+    E = (np.arange(tree.nv)[:, None] == va[None, :]).astype(float)
+    return jnp.einsum("...k,ik->...i", tau, jnp.asarray(E, q.dtype))
+
+
+def limit_energy(tree: Tree, q):
+    """The limit springs' potential energy ``(...)``; ``None`` without limits."""
+    if tree.limits is None:
+        return None
+    qa, _, lo, hi = _limited(tree)
+    return jnp.sum(tree.limits.energy(q[..., qa], jnp.asarray(lo, q.dtype), jnp.asarray(hi, q.dtype)), axis=-1)
