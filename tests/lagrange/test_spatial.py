@@ -298,7 +298,7 @@ def test_gradients_from_rest_are_finite_and_exact():
     fd = np.asarray(jax.jit(jax.vmap(final))(jnp.concatenate([steps, -steps])))
     assert rel(J, (fd[: tree.nv] - fd[tree.nv:]).T / (2 * h)) <= 1e-6
     # and through the exponential map itself, at exactly zero rotation
-    g = jax.grad(lambda w: jnp.sum(lg.spatial.integrate_positions(tree, q, w, 0.01) ** 2))(rest)
+    g = jax.grad(lambda w: jnp.sum(lg.rbda.integrate_positions(tree, q, w, 0.01) ** 2))(rest)
     assert np.all(np.isfinite(g))
 
 
