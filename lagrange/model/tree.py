@@ -91,8 +91,8 @@ class Body(eqx.Module):
         joints = tuple(joints) if not isinstance(joints, AbstractJoint) else (joints,)
         for k, j in enumerate(joints):
             if not isinstance(j, AbstractJoint):
-                raise TypeError(f"{who}.joints[{k}] must be a joint of lagrange.model.joints (Hinge, Slide, Ball, "
-                                f"Free), got {type(j).__name__}")
+                raise TypeError(f"{who}.joints[{k}] must be a joint of lagrange.joints (Hinge, Slide, Ball, Free), "
+                                f"got {type(j).__name__}")
             if isinstance(j, Free) and k != 0:
                 raise ValueError(f"{who}.joints[{k}] is a Free joint: a free joint must be a body's only joint")
         if any(isinstance(j, Free) for j in joints) and len(joints) > 1:
