@@ -103,14 +103,14 @@ def _inputs(n, m, B, T, dtype):
     return lg.astype(_inputs64(n, m, B, T), dtype)
 
 
-def _lagrange(chain, solver, dt, argnums):
-    """The jitted forward and gradient of ``chain``'s rollout (a spatial tree's with its per-program compiler
-    options: YNNPACK off on a CPU)."""
+def _lagrange(chain, solver, dt, argnums, general=False):
+    """The jitted forward and gradient of ``chain``'s rollout (the general algorithms' with their per-program compiler
+    options: YNNPACK off on a CPU); ``general``: the general algorithms on a planar tree too."""
     def rollout(q0, qd0, us):
-        tr = lg.simulate(chain, q0, qd0, us, dt, solver, check=False)
+        tr = lg.simulate(chain, q0, qd0, us, dt, solver, check=False, general=general)
         return tr.q[-1], tr.qd[-1]
 
-    return _jax_pair(rollout, argnums, compiler_options=lg.compiler_options(chain))
+    return _jax_pair(rollout, argnums, compiler_options=lg.compiler_options(chain, general=general))
 
 
 def _time(fn, args):
@@ -212,7 +212,7 @@ def trees3d_rows(s):
     for name, path in free.items():
         model, tree = trees3d.free_flight(path)
         engines = {"lagrange_sie": _lagrange(lg.astype(tree, jnp.float32), lg.SemiImplicitEuler(),
-                                             model.opt.timestep, (0, 1))}
+                                             model.opt.timestep, (0, 1), general=True)}
         if s is FULL:  # --small: lagrange only (MJX's 3-D compiles are long on a CPU; the other sections run MJX)
             engines["mjx"] = _jax_pair(mjx_rollout(model, model.opt.timestep), (0, 1))
         for B in s["trees3d_batches"]:

@@ -24,6 +24,7 @@ import numpy as np  # noqa: E402
 import lagrange as lg  # noqa: E402
 from benchmarks._cli import RESULTS, asset  # noqa: E402
 from lagrange.interop.mjcf import from_mjcf, mujoco_rollout, solver_of  # noqa: E402
+from lagrange.tasks.base import joint_kinds  # noqa: E402
 from optim.checkpoint import write_json, write_text  # noqa: E402
 
 MODELS = {
@@ -80,7 +81,7 @@ def measure(path: pathlib.Path) -> dict:
                          solver, steps=100)
         rollout = max(rollout, rel(np.concatenate([tr.q[1:], tr.qd[1:]], axis=1), xs[1:]))
         done += 1
-    return dict(joints=list(chain.joints), integrator=type(solver).__name__, timestep=dt, **err, rollout=rollout)
+    return dict(joints=list(joint_kinds(chain)), integrator=type(solver).__name__, timestep=dt, **err, rollout=rollout)
 
 
 def main():

@@ -44,6 +44,7 @@ import numpy as np  # noqa: E402
 import lagrange as lg  # noqa: E402
 from benchmarks._cli import gymnasium_model, markdown_table, outputs, save_figure, subplots  # noqa: E402
 from benchmarks._timing import median_time  # noqa: E402
+from lagrange.chain import Chain, Link  # noqa: E402
 from lagrange.interop.mjcf import from_mjcf  # noqa: E402
 from lagrange.kinematics import contact_point_positions  # noqa: E402
 from optim.checkpoint import write_json  # noqa: E402
@@ -92,14 +93,13 @@ def _batch(n, size, rng):
 
 def _rods(base, mass, length):
     """``base`` (an n-link pendulum) with uniform rods of these masses and lengths: a chain of the stress batch."""
-    return eqx.tree_at(lambda c: (c.mass, c.length, c.com, c.inertia), base,
-                       (mass, length, length / 2, mass * length**2 / 12))
+    return Chain([Link("revolute", mass[i], length[i]) for i in range(base.nv)])
 
 
 def _energy_error(chain, q, qd):
     """``|E(t) - E(0)| / (E(0) - V(q = 0))`` at each row of a trajectory ``q, qd`` (shape ``(T + 1, n)``)."""
     kin, pot = lg.energy(chain, q, qd)
-    rest = lg.energy(chain, jnp.zeros(chain.n), jnp.zeros(chain.n))[1]
+    rest = lg.energy(chain, jnp.zeros(chain.nq), jnp.zeros(chain.nv))[1]
     return jnp.abs(kin + pot - kin[0] - pot[0]) / (kin[0] + pot[0] - rest)
 
 
@@ -334,8 +334,9 @@ def dropped(name, ke, damped=True):
     chain = from_mjcf(gymnasium_model(name), contact=lg.PenaltyContact(ke, k, k, DROP_MU[name]),
                       limits=lg.PenaltyLimits(1e3, 10.0 if damped else 0.0))
     if not damped:
-        chain = eqx.tree_at(lambda c: c.damping, chain, jnp.zeros_like(chain.damping))
-    q0 = np.zeros((len(DROP_TILTS), chain.n))
+        joints = lambda c: [j.damping for b in c.bodies for j in b.joints]  # noqa: E731
+        chain = eqx.tree_at(joints, chain, [np.zeros_like(d) for d in joints(chain)])
+    q0 = np.zeros((len(DROP_TILTS), chain.nq))
     q0[:, 1] = (1.25 if name == "hopper" else 0.0) + DROP_HEIGHT  # rootz's qpos0: 1.25 (hopper) and 0 (cheetah)
     q0[:, 2] = DROP_TILTS
     return chain, jnp.asarray(q0)
@@ -353,7 +354,7 @@ def _drop(chain, q0, h, steps):
 def step_estimate(chain, q):
     """``(2 sqrt(m_eff / ke), m_eff)``: ``m_eff = 1 / (J M^-1 J^T)`` the lightest of the contact points' effective
     masses along the ground's normal at ``q`` (``J``: the gradient of a point's height)."""
-    J = np.asarray(jax.jacfwd(lambda q: contact_point_positions(chain, q)[:, 1])(q))
+    J = np.asarray(jax.jacfwd(lambda q: contact_point_positions(chain, q)[:, 2])(q))  # the points' heights
     m_eff = 1 / np.max(np.sum(J * np.linalg.solve(np.asarray(lg.mass_matrix(chain, q)), J.T).T, axis=1))
     return 2 * np.sqrt(m_eff / float(chain.contact.ke)), m_eff
 

@@ -237,11 +237,11 @@ def _trajectory_error(chain, mj, a):
     q0, qd0, us = (np.asarray(x) for x in a)
     traj = jax.jit(jax.vmap(lambda q, qd, u: lg.simulate(chain, q, qd, u, DT, lg.SemiImplicitEuler(), check=False).q))
     q = np.asarray(traj(q0, qd0, us))[:, 1:]
-    qm = mj.make(q0, qd0, us)()[:, :, 1 : 1 + chain.n]
+    qm = mj.make(q0, qd0, us)()[:, :, 1 : 1 + chain.nv]
     finite = np.all(np.isfinite(q) & np.isfinite(qm), axis=(1, 2))
     if not finite.any():
         return dict(max_abs_q_difference_to_mujoco=float("nan"), max_abs_q=float("nan"), rollouts_finite_in_both=0)
-    qm_ulp = mj.make(np.nextafter(q0, np.inf), qd0, us)()[:, :, 1 : 1 + chain.n]
+    qm_ulp = mj.make(np.nextafter(q0, np.inf), qd0, us)()[:, :, 1 : 1 + chain.nv]
     both = finite & np.all(np.isfinite(qm_ulp), axis=(1, 2))
     out = dict(max_abs_q_difference_to_mujoco=float(np.max(np.abs(q - qm)[finite])),
                max_abs_q=float(np.max(np.abs(qm[finite]))), rollouts_finite_in_both=int(finite.sum()),
@@ -264,7 +264,7 @@ def pinocchio_rollouts(model, chain, q0, qd0, us):
     ours = np.asarray(lg.forward_dynamics(chain, jnp.asarray(q0[0]), jnp.asarray(qd0[0]), jnp.asarray(us[0, 0])))
     if not np.allclose(-pin.aba(model, data, -q0[0], -qd0[0], -us[0, 0]), ours, rtol=1e-9, atol=1e-9):
         raise RuntimeError("Pinocchio's model does not mirror the chain: its ABA disagrees with forward_dynamics")
-    out = np.empty(us.shape[:2] + (chain.n,))
+    out = np.empty(us.shape[:2] + (chain.nv,))
     for b in range(us.shape[0]):
         x, v = -q0[b], -qd0[b]
         for t in range(us.shape[1]):
@@ -439,7 +439,7 @@ def _legged_inputs(chain, model, batch, settle=150):
     die out): the foot stands on the ground. Also how many states touch the ground in MuJoCo (``ncon > 0``)."""
     import mujoco
 
-    q0, qd0, us = _inputs(chain.n, chain.m, batch, T=LEGGED_T)
+    q0, qd0, us = _inputs(chain.nv, chain.m, batch, T=LEGGED_T)
     if chain.contact is not None:
         rng = np.random.default_rng(1)
         q0, qd0 = model.qpos0 + rng.uniform(-5e-3, 5e-3, q0.shape), rng.uniform(-5e-3, 5e-3, qd0.shape)
@@ -474,7 +474,7 @@ def legged_main(batch, path):
         engines = {"lagrange": lagrange_engine(chain, lg.SemiImplicitEuler(), model.opt.timestep, argnums=(0, 1)),
                    "mjx": _jax_pair(mjx_rollout(legged_model(xml, constraints, iterations=1), DT), (0, 1)),
                    "brax": _jax_pair(lambda q0, qd0, us: brax(q0 + shift, qd0, us), (0, 1))}
-        row = dict(model=name, dt=model.opt.timestep, n=chain.n, contact_points=len(chain.contact_links),
+        row = dict(model=name, dt=model.opt.timestep, n=chain.nv, contact_points=len(chain.contact_links),
                    states_touching_in_mujoco=touching)
         for e, (fwd, grad) in engines.items():
             gb = min(batch, MJX_CONTACT_GRADIENT_BATCH) if e == "mjx" and chain.contact is not None else batch
@@ -495,7 +495,7 @@ def legged_main(batch, path):
                 "forward_speedup_over_mujoco_c (target >= 5)": tm / t,
                 "forward_speedup_over_mujoco_c_1thread": tm1 / t1,
                 "max_abs_qT_difference_to_mujoco": float(np.max(np.abs(np.asarray(engines["lagrange"][0](*a)[0])
-                                                                       - mj()[:, -1, 1 : 1 + chain.n])))}
+                                                                       - mj()[:, -1, 1 : 1 + chain.nv])))}
         out["rows"].append(row)
     out["loadavg_end"] = os.getloadavg()
     print(markdown_table(out["rows"], list(out["rows"][0])))

@@ -80,7 +80,7 @@ def lagrange_runner(chain, solver, substeps, tol=None):
 def mujoco_runner(chain, substeps, integrator):
     """MuJoCo C, one thread per core: ``run(q0, qd0, us, batch=1) -> (q, qd)`` at the end, from ``batch`` copies of
     the initial state."""
-    mj, n = MujocoC(chain, DT / substeps, integrator, nthread=os.cpu_count()), chain.n
+    mj, n = MujocoC(chain, DT / substeps, integrator, nthread=os.cpu_count()), chain.nv
 
     def run(q0, qd0, us, batch=1):
         d = mj.mujoco.MjData(mj.model)
@@ -139,7 +139,7 @@ def reference(chain, q0, qd0, us):
     x12 = final(rtol=1e-12, atol=1e-12)
     xfix = final(substeps=200)
     ref_err = float(max(np.max(np.abs(x13 - x12)), np.max(np.abs(x13 - xfix))))
-    n = chain.n
+    n = chain.nv
     rest = float(lg.energy(chain, jnp.zeros(n), jnp.zeros(n))[1])
     scale = _energy(chain, q0j, qd0j) - rest
     return dict(x=x13, E=_energy(chain, x13[:n], x13[n:]), scale=scale, self_error=ref_err,

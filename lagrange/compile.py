@@ -19,7 +19,6 @@ The library's own jitted programs of a task (``optim``'s trainers and evaluation
 
 from __future__ import annotations
 
-from lagrange.model.tree import Tree
 
 __all__ = ["YNN_OFF_FLAG", "compiler_options"]
 
@@ -34,15 +33,21 @@ through :class:`~lagrange.interop.brax.BraxEnv` runs 8x faster with it on a CPU 
 0.30 ms an environment against 3.06 ms; the ant's 0.050 against 0.330: ``python -m research.brax_ynn``)."""
 
 
-def compiler_options(model, backend: str | None = None) -> dict[str, str] | None:
-    """The ``compiler_options`` of ``jax.jit`` for programs of ``model``: :data:`YNN_OFF` for a spatial
-    :class:`~lagrange.model.tree.Tree` compiled for a CPU, else None (the compiler's defaults).
+def compiler_options(model, backend: str | None = None, *, general: bool = False) -> dict[str, str] | None:
+    """The ``compiler_options`` of ``jax.jit`` for programs of ``model``: :data:`YNN_OFF` for a tree whose dynamics
+    are the general rigid-body algorithms' (:func:`lagrange.dynamics.backend`: a 3-D tree, or any tree with
+    ``general=True``) compiled for a CPU, else None (the compiler's defaults: a planar tree's).
 
     Args:
-        model: a :class:`lagrange.Tree` or a :class:`lagrange.Chain` (or anything else: None).
+        model: a :class:`lagrange.Tree` (a :class:`lagrange.Chain` is one), or anything else: None.
         backend: the platform the program is compiled for (default: JAX's default backend).
+        general: the program runs the general algorithms even on a planar tree (``simulate(..., general=True)``).
     """
-    if not isinstance(model, Tree):
+    from lagrange.dynamics import backend as prepared
+    from lagrange.model.tree import Tree
+    from lagrange.rbda.backend import General
+
+    if not isinstance(model, Tree) or not isinstance(prepared(model, check=False, general=general), General):
         return None
     if backend is None:
         import jax

@@ -6,7 +6,7 @@ discrete-time LQR gain, the LQR saturated at the task's actuator limit, and the 
 lean from which it brings the chain back to rest). How long a hold lasts along an episode is
 :func:`lagrange.tasks.leaves_upright`.
 
-    n, m = task.chain.n, task.chain.m
+    n, m = task.chain.nv, task.chain.m
     A, B = linearise(task)                                   # x' = A x + B u about upright, one interval
     K = lqr_gain(A, B, np.diag([1.0] * n + [0.01] * n), np.eye(m))
     basin(task, saturated_lqr(task, K), leans=[0.01, 0.1, 0.3], steps=3000).largest_recovered_lean
@@ -33,7 +33,7 @@ __all__ = ["upright_state", "upright_deviation", "linearise", "lqr_gain", "satur
 def upright_state(task: AbstractPoleTask) -> Float[np.ndarray, " 2*n"]:
     """``(q, qd)`` of the balanced chain at rest: the first pole's joint at pi, the rest (and any cart) at 0, in the
     chain's float type."""
-    x = np.zeros(2 * task.chain.n, np.asarray(task.chain.mass).dtype)
+    x = np.zeros(2 * task.chain.nv, np.asarray(task.chain.mass).dtype)
     x[task.first_pole] = np.pi
     return x
 
@@ -41,7 +41,7 @@ def upright_state(task: AbstractPoleTask) -> Float[np.ndarray, " 2*n"]:
 def upright_deviation(task: AbstractPoleTask) -> Callable[[Array, Array], Float[Array, "*batch 2*n"]]:
     """``deviation(q, qd) -> dx``: the state minus upright at rest, ``q``, ``qd`` (..., n) -> (..., 2n), with the
     joint angles wrapped to ``(-pi, pi]`` (a cart's position is not)."""
-    n = task.chain.n
+    n = task.chain.nv
     x0 = jnp.asarray(upright_state(task))
     angular = jnp.arange(n) >= task.first_pole
 
@@ -57,7 +57,7 @@ def linearise(task: AbstractPoleTask, x0: ArrayLike | None = None, u0: ArrayLike
     """``(A, B)``, float64: the Jacobians of one control interval ``task.step`` at ``x0`` (2n,) and ``u0`` (m,),
     ``x' ~ x0' + A (x - x0) + B (u - u0)``, by ``jax.jacfwd`` in the chain's float type. Defaults: upright at rest and
     no action, where ``x0' = x0``. Inside ``|u0| < 1`` (the action is clipped there)."""
-    n, m = task.chain.n, task.chain.m
+    n, m = task.chain.nv, task.chain.m
     dtype = upright_state(task).dtype
     x0 = jnp.asarray(upright_state(task) if x0 is None else x0, dtype)
     u0 = jnp.zeros(m, dtype) if u0 is None else jnp.asarray(u0, dtype)
@@ -102,7 +102,7 @@ def lqr_gain(A: ArrayLike, B: ArrayLike, Q: ArrayLike, R: ArrayLike) -> Float[np
 def saturated_lqr(task: AbstractPoleTask, K: ArrayLike) -> Callable[[Array, Array], Float[Array, "*batch m"]]:
     """``controller(q, qd) -> u``: the LQR about upright saturated at the task's limit, ``clip(-K dx, -1, 1)``, with
     ``dx`` from :func:`upright_deviation`; ``q``, ``qd`` (..., n) -> (..., m). ``K`` (m, 2n): :func:`lqr_gain`'s."""
-    n, m = task.chain.n, task.chain.m
+    n, m = task.chain.nv, task.chain.m
     K = jnp.asarray(K, upright_state(task).dtype)
     if K.shape != (m, 2 * n):
         raise ValueError(f"saturated_lqr: K must have shape (m, 2n) = {(m, 2 * n)}, got {K.shape}")
@@ -133,7 +133,7 @@ def basin(task: AbstractPoleTask, controller: Callable, *, leans: ArrayLike, ste
     coordinate and velocity is within ``tol`` (rad, m, rad/s, m/s) of upright at rest. ``joints`` default to every
     pole joint. One jitted rollout, run start by start."""
     leans = np.asarray(leans, np.float64)
-    poles = tuple(range(task.first_pole, task.chain.n))
+    poles = tuple(range(task.first_pole, task.chain.nv))
     joints = poles if joints is None else tuple(int(j) for j in joints)
     if leans.ndim != 1 or leans.size == 0 or not np.all(np.isfinite(leans)) or np.any(np.diff(leans) <= 0):
         raise ValueError(f"basin: leans must be a non-empty increasing 1-D sequence of finite angles, got {leans}")
@@ -143,7 +143,7 @@ def basin(task: AbstractPoleTask, controller: Callable, *, leans: ArrayLike, ste
         raise ValueError(f"basin: tol must be > 0, got {tol!r}")
     if not joints or any(j not in poles for j in joints):
         raise ValueError(f"basin: joints must be pole joints among {poles}, got {joints}")
-    n = task.chain.n
+    n = task.chain.nv
     x0 = upright_state(task)
     deviation = upright_deviation(task)
 

@@ -14,22 +14,26 @@ and the joints' dampers ``D qd``, springs ``K (q - q_ref)``, the limits' penalty
 (:class:`lagrange.PenaltyLimits`) and the contact forces ``f_s`` at the contact spots ``s``
 (:class:`lagrange.PenaltyContact`) are generalized forces beside ``B u``.
 
-This module checks the arguments and the parameters and picks one of two derivations by the chain's size, here and
-nowhere else:
+This module checks the arguments and the parameters once, at the public entry, and picks the backend
+(:func:`backend`), here and nowhere else, by the tree's structure:
 
-- chains of fewer than ``RECURSIVE_MIN`` links: :mod:`lagrange.planar.unrolled`, where ``J_i`` and ``(dJ_i/dt) qd`` are
+- a planar tree (:attr:`lagrange.Tree.planar`: hinges about one axis, slides across it), lowered to the planar
+  backend's chain while tracing (:func:`lagrange.planar.lower.lower`): of fewer than ``RECURSIVE_MIN`` links the
+  unrolled derivation (:class:`~lagrange.planar.backend.Unrolled`), where ``J_i`` and ``(dJ_i/dt) qd`` are
   differentiated at trace time from the forward kinematics written as sums of unit vectors, simplified at trace time,
   so the compiled program contains only the terms the chain has, and ``M qdd = rhs`` is solved unrolled over scalars;
-- chains of ``RECURSIVE_MIN`` or more links: the recursive algorithms of :mod:`lagrange.planar.recursive`
-  (ABA, RNEA, CRBA as scans over the links), whose work grows like n rather than n^3.
+  of ``RECURSIVE_MIN`` or more the recursive algorithms (:class:`~lagrange.planar.backend.Recursive`: ABA, RNEA, CRBA
+  as scans over the links), whose work grows like n rather than n^3;
+- any other tree (balls, free joints, hinges about several axes): the general rigid-body algorithms
+  (:class:`~lagrange.rbda.backend.General`), which take a planar tree too (``general=True``).
 
-The tests check both against the literal derivation (Hessians of the Lagrangian,
-``oracles/euler_lagrange.py``) and hand-written closed forms.
+The tests check the planar ones against the literal derivation (Hessians of the Lagrangian,
+``oracles/euler_lagrange.py``) and hand-written closed forms, and every planar model both ways.
 
-Shapes: ``n`` links, ``m`` actuated joints. Every function is pure, takes ``q``/``qd``/``u``/``qdd``
-with any leading batch dimensions ``*batch`` (broadcast against each other), and is safe under
-``jit``, ``vmap`` and ``grad``. Units: SI, with a joint's coordinate in rad (revolute) or m
-(prismatic) and its generalized force in N m or N.
+Shapes: ``nq`` coordinates, ``nv`` velocities (``n`` of each for a planar chain), ``m`` controls. Every function is
+pure, takes ``q``/``qd``/``u``/``qdd`` with any leading batch dimensions ``*batch`` (broadcast against each other), and
+is safe under ``jit``, ``vmap`` and ``grad``. Units: SI, with a joint's coordinate in rad (revolute) or m (prismatic)
+and its generalized force in N m or N.
 """
 
 from __future__ import annotations
@@ -40,15 +44,16 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float
 
-from lagrange import rbda as spatial
-from lagrange.planar import recursive, unrolled
+from lagrange.backend import AbstractBackend
 from lagrange.forces import actuation_matrix
-from lagrange.chain import Chain
 from lagrange.model.checks import check_parameters
 from lagrange.model.tree import Tree
+from lagrange.planar.backend import Recursive, Unrolled
+from lagrange.planar.lower import lower
+from lagrange.rbda.backend import General
 
-__all__ = ["RECURSIVE_MIN", "SINGULAR", "actuation_matrix", "bias_forces", "energy", "forward_dynamics",
-           "forward_dynamics_and_pivots", "gravity_forces", "inverse_dynamics", "mass_matrix"]
+__all__ = ["RECURSIVE_MIN", "SINGULAR", "actuation_matrix", "backend", "bias_forces", "energy", "forward_dynamics",
+           "forward_dynamics_and_pivots", "gravity_forces", "inverse_dynamics", "mass_matrix", "prepare"]
 
 
 def _as_constant(x):
@@ -57,33 +62,18 @@ def _as_constant(x):
     return x
 
 
-def _folded(chain: Chain) -> Chain:
-    """``chain`` with its concrete parameters as NumPy arrays, so that their products with each other are computed
-    while tracing and reach XLA as literals. A chain closed over by a jitted function has concrete parameters, but
+def _folded(tree: Tree) -> Tree:
+    """``tree`` with its concrete parameters as NumPy arrays, so that their products with each other are computed
+    while tracing and reach XLA as literals. A tree closed over by a jitted function has concrete parameters, but
     XLA receives them as run-time operands of the time-stepping loop: it does not fold them, and on the CPU they can
     cost the fused step its vectorization (``python -m research.xla_vectorization``: the cartpole's
     closed form 1.7-1.9x slower with its constants as arrays). Parameters being differentiated or vmapped are
     tracers and stay as they are."""
-    return jax.tree_util.tree_map(_as_constant, chain)
-
-
-def _prepared(chain: Chain, *, at_run_time: bool = True) -> Chain:
-    """``chain`` with its parameters checked (:func:`lagrange.model.checks.check_parameters`: concrete ones now, traced
-    ones when run unless ``at_run_time=False``) and folded (:func:`_folded`)."""
-    return _folded(check_parameters(chain, at_run_time=at_run_time))
-
-
-def _check(chain: Chain | Tree, name: str, x, size: int | None = None):
-    if size is None:  # q has nq entries, qd and qdd nv, u m
-        size = {"q": getattr(chain, "nq", chain.n), "u": chain.m}.get(name, chain.n)
-    shape = jnp.shape(x)
-    if len(shape) == 0 or shape[-1] != size:
-        what = " (the chain has no actuated joint: pass u=None)" if name == "u" and size == 0 else ""
-        raise ValueError(f"{name} must have shape (..., {size}) for this chain{what}, got {shape}")
+    return jax.tree_util.tree_map(_as_constant, tree)
 
 
 RECURSIVE_MIN = 4
-"""Chains of at least this many links use the recursive algorithms of :mod:`lagrange.planar.recursive`
+"""Planar trees of at least this many links use the recursive algorithms of :mod:`lagrange.planar.recursive`
 (ABA for ``forward_dynamics``, CRBA for ``mass_matrix``, RNEA for the forces,
 ``inverse_dynamics`` and ``energy``): O(n) work (O(n^2) for M) and a compiled program whose size
 does not depend on n. Shorter chains keep the unrolled relative-angle derivation above, which needs
@@ -108,23 +98,53 @@ library's training loops, gains most. Hence 4 (a vmapped function is traced once
 depend on the batch size)."""
 
 
-def _recursive(chain: Chain) -> bool:
-    return not isinstance(chain, Tree) and chain.n >= RECURSIVE_MIN
+def backend(tree: Tree, *, check: bool = True, general: bool = False) -> AbstractBackend:
+    """The tree prepared for the backend that derives its equations: the one place that chooses, by the tree's
+    structure (the module docstring).
+
+    Args:
+        tree: the :class:`lagrange.Tree` (a :class:`lagrange.chain.Chain` is one).
+        check: also check its traced parameters when run (:func:`lagrange.model.checks.check_parameters`; concrete
+            ones are checked now either way).
+        general: the general rigid-body algorithms even for a planar tree (a cross-check of the planar backend).
+
+    Returns:
+        The :class:`~lagrange.backend.AbstractBackend`, its concrete parameters folded to NumPy arrays.
+
+    Raises:
+        TypeError: for a model that is not a :class:`lagrange.Tree`.
+        ValueError: for a concrete parameter that breaks its rule.
+    """
+    if not isinstance(tree, Tree):
+        raise TypeError(f"the model must be a lagrange.Tree (a lagrange.chain.Chain is one), got {type(tree).__name__}")
+    tree = _folded(check_parameters(tree, at_run_time=check))
+    chain = None if general or not tree.planar else lower(tree)
+    if chain is None:
+        return General(tree)
+    return Unrolled(chain) if chain.n < RECURSIVE_MIN else Recursive(chain)
 
 
-def _derivation(chain: Chain | Tree):
-    """The module that computes for ``chain``: :mod:`lagrange.rbda` for a 3-D tree, else by the chain's size the
-    recursive algorithms or the unrolled derivation."""
-    if isinstance(chain, Tree):
-        return spatial
-    return recursive if _recursive(chain) else unrolled
+def _check(tree: Tree, name: str, x):
+    size = {"q": tree.nq, "u": tree.m}.get(name, tree.nv)  # q has nq entries, qd and qdd nv, u m
+    shape = jnp.shape(x)
+    if len(shape) == 0 or shape[-1] != size:
+        what = " (the tree has no motor: pass u=None)" if name == "u" and size == 0 else ""
+        raise ValueError(f"{name} must have shape (..., {size}) for this tree{what}, got {shape}")
 
 
-def _operands(chain: Chain | Tree, *xs):
-    """A tree's arguments as JAX arrays (``None`` kept); a chain's as given (its derivations fold NumPy constants)."""
-    if isinstance(chain, Tree):
-        return tuple(None if x is None else jnp.asarray(x) for x in xs)
-    return xs
+def prepare(tree: Tree, *, check: bool = True, general: bool = False, **arrays) -> AbstractBackend:
+    """:func:`backend` after checking the shapes of ``arrays`` against the tree (``q (..., nq)``, ``qd`` and ``qdd
+    (..., nv)``, ``u (..., m)``; ``None`` skipped): what every public function does first.
+
+    Raises:
+        ValueError: naming the array whose last axis does not match.
+    """
+    if not isinstance(tree, Tree):
+        raise TypeError(f"the model must be a lagrange.Tree (a lagrange.chain.Chain is one), got {type(tree).__name__}")
+    for name, x in arrays.items():
+        if x is not None:
+            _check(tree, name, x)
+    return backend(tree, check=check, general=general)
 
 
 SINGULAR = (
@@ -135,78 +155,71 @@ SINGULAR = (
 """The error :func:`forward_dynamics` raises at a configuration where ``M`` is singular."""
 
 
-def mass_matrix(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch n n"]:
-    """The mass matrix ``M(q)``, symmetric positive semi-definite (definite for a regular chain).
+def mass_matrix(tree: Tree, q: Float[ArrayLike, "*batch nq"]) -> Float[Array, "*batch nv nv"]:
+    """The mass matrix ``M(q)``, symmetric positive semi-definite (definite for a regular tree).
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`.
-        q: joint coordinates [rad or m], shape ``(*batch, n)``.
+        tree: the :class:`lagrange.Tree` (a :class:`~lagrange.chain.Chain` is one).
+        q: coordinates [rad or m], shape ``(*batch, nq)``.
 
     Returns:
-        ``M``, shape ``(*batch, n, n)`` [kg m^2, kg m or kg].
+        ``M``, shape ``(*batch, nv, nv)`` [kg m^2, kg m or kg].
     """
-    _check(chain, "q", q)
-    chain = _prepared(chain)
-    return _derivation(chain).mass_matrix(chain, *_operands(chain, q))
+    return prepare(tree, q=q).mass_matrix(q)
 
 
 def bias_forces(
-    chain: Chain, q: Float[ArrayLike, "*batch n"], qd: Float[ArrayLike, "*batch n"]
-) -> Float[Array, "*batch n"]:
+    tree: Tree, q: Float[ArrayLike, "*batch nq"], qd: Float[ArrayLike, "*batch nv"]
+) -> Float[Array, "*batch nv"]:
     """``C(q, qd) qd + T(q) + D qd + K (q - q_ref) - tau_limits - sum_s J_s^T f_s``: what the joints must supply at
     ``qdd = 0``.
 
     The velocity products, gravity, the joints' dampers and springs, minus the limits' penalty forces and the contact
-    forces (each term only where the chain has it). For a model read by :func:`~lagrange.interop.mjcf.from_mjcf`
+    forces (each term only where the tree has it). For a model read by :func:`~lagrange.interop.mjcf.from_mjcf`
     without limits and contact it equals MuJoCo's ``qfrc_bias - qfrc_passive``.
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`.
-        q: joint coordinates [rad or m], shape ``(*batch, n)``.
-        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
+        tree: the :class:`lagrange.Tree`.
+        q: coordinates [rad or m], shape ``(*batch, nq)``.
+        qd: velocities [rad/s or m/s], shape ``(*batch, nv)``.
 
     Returns:
-        Shape ``(*batch, n)`` [N m or N].
+        Shape ``(*batch, nv)`` [N m or N].
     """
-    _check(chain, "q", q)
-    _check(chain, "qd", qd)
-    chain = _prepared(chain)
-    return _derivation(chain).bias_forces(chain, *_operands(chain, q, qd))
+    return prepare(tree, q=q, qd=qd).bias_forces(q, qd)
 
 
-def gravity_forces(chain: Chain, q: Float[ArrayLike, "*batch n"]) -> Float[Array, "*batch n"]:
+def gravity_forces(tree: Tree, q: Float[ArrayLike, "*batch nq"]) -> Float[Array, "*batch nv"]:
     """``T(q) = dV/dq``: the generalized gravity forces (no springs, limits or contact).
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`.
-        q: joint coordinates [rad or m], shape ``(*batch, n)``.
+        tree: the :class:`lagrange.Tree`.
+        q: coordinates [rad or m], shape ``(*batch, nq)``.
 
     Returns:
-        Shape ``(*batch, n)`` [N m or N].
+        Shape ``(*batch, nv)`` [N m or N].
     """
-    _check(chain, "q", q)
-    chain = _prepared(chain)
-    return _derivation(chain).gravity_forces(chain, *_operands(chain, q))
+    return prepare(tree, q=q).gravity_forces(q)
 
 
 def forward_dynamics(
-    chain: Chain,
-    q: Float[ArrayLike, "*batch n"],
-    qd: Float[ArrayLike, "*batch n"],
+    tree: Tree,
+    q: Float[ArrayLike, "*batch nq"],
+    qd: Float[ArrayLike, "*batch nv"],
     u: Float[ArrayLike, "*batch m"] | None = None,
     *,
     implicit_damping_dt: float | Float[ArrayLike, ""] | None = None,
     check: bool = True,
-) -> Float[Array, "*batch n"]:
-    """Joint accelerations ``qdd = M^-1 (B u - bias_forces(chain, q, qd))``.
+) -> Float[Array, "*batch nv"]:
+    """Accelerations ``qdd = M^-1 (B u - bias_forces(tree, q, qd))``.
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`.
-        q: joint coordinates [rad or m], shape ``(*batch, n)``.
-        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
-        u: controls, shape ``(*batch, m)`` (generalized force ``gear * u`` on each actuated joint, ``u``
-            first clamped into the joint's ``control_range`` where it has one); ``None`` (no control) or
-            omitted for an unactuated chain.
+        tree: the :class:`lagrange.Tree`.
+        q: coordinates [rad or m], shape ``(*batch, nq)``.
+        qd: velocities [rad/s or m/s], shape ``(*batch, nv)``.
+        u: controls, shape ``(*batch, m)`` (generalized force ``gear * u`` on each driven joint, ``u`` first clamped
+            into the motor's ``control_range`` where it has one); ``None`` (no control) or omitted for a tree
+            without motors.
         implicit_damping_dt: ``h`` [s] to solve with ``M + h diag(damping)`` instead of ``M``, the velocity
             update of :class:`lagrange.SemiImplicitEuler` (damping treated implicitly); ``None`` for ``M``.
         check: raise where ``M`` is singular at ``q``, or where a traced parameter breaks its rule
@@ -215,102 +228,80 @@ def forward_dynamics(
             state). Concrete parameters are checked while tracing either way.
 
     Returns:
-        ``qdd``, shape ``(*batch, n)`` [rad/s^2 or m/s^2].
+        ``qdd``, shape ``(*batch, nv)`` [rad/s^2 or m/s^2].
 
     Raises:
         ValueError: (while tracing) for a concrete parameter that breaks its rule (a negative mass set by
-            ``eqx.tree_at``, ...), naming the field and the link.
+            ``eqx.tree_at``, ...), naming the field.
         equinox.EquinoxRuntimeError: (when run, with ``check=True``) if ``M`` is singular at ``q`` (a pivot of its
             factorisation is not positive), with :data:`SINGULAR` as the message, or if a traced parameter breaks its
-            rule (naming the field and the link).
+            rule (naming the field).
     """
+    b = prepare(tree, check=check, q=q, qd=qd, u=u)
     if not check:
-        return _forward(chain, q, qd, u, implicit_damping_dt, pivots=False, at_run_time=False)
-    qdd, singular = _forward(chain, q, qd, u, implicit_damping_dt, pivots=True, at_run_time=True)
+        return b.forward_dynamics(q, qd, u, implicit_damping_dt)
+    qdd, singular = b.forward_dynamics(q, qd, u, implicit_damping_dt, pivots=True)
     return eqx.error_if(qdd, singular, SINGULAR)
 
 
 def forward_dynamics_and_pivots(
-    chain: Chain,
-    q: Float[ArrayLike, "*batch n"],
-    qd: Float[ArrayLike, "*batch n"],
+    tree: Tree,
+    q: Float[ArrayLike, "*batch nq"],
+    qd: Float[ArrayLike, "*batch nv"],
     u: Float[ArrayLike, "*batch m"] | None = None,
     *,
     implicit_damping_dt: float | Float[ArrayLike, ""] | None = None,
-) -> tuple[Float[Array, "*batch n"], Bool[Array, " *batch"]]:
+) -> tuple[Float[Array, "*batch nv"], Bool[Array, " *batch"]]:
     """:func:`forward_dynamics` without its check, and where it would raise.
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`.
-        q: joint coordinates [rad or m], shape ``(*batch, n)``.
-        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
+        tree: the :class:`lagrange.Tree`.
+        q: coordinates [rad or m], shape ``(*batch, nq)``.
+        qd: velocities [rad/s or m/s], shape ``(*batch, nv)``.
         u: controls, shape ``(*batch, m)``, or ``None`` (as for :func:`forward_dynamics`).
         implicit_damping_dt: as for :func:`forward_dynamics` [s].
 
     Returns:
-        ``(qdd, singular)``: ``qdd`` of shape ``(*batch, n)`` and ``singular`` of shape ``(*batch,)``, true where a
-        pivot of the factorisation of ``M`` (ABA's articulated inertias ``D_i``; the LDL^T pivots, or the
+        ``(qdd, singular)``: ``qdd`` of shape ``(*batch, nv)`` and ``singular`` of shape ``(*batch,)``, true where a
+        pivot of the factorisation of ``M`` (ABA's articulated inertias ``D_i``; the LDL^T or Cholesky pivots, or the
         determinant for n <= 3) is not positive or not finite.
     """
-    return _forward(chain, q, qd, u, implicit_damping_dt, pivots=True, at_run_time=True)
-
-
-def _forward(chain: Chain, q, qd, u, implicit_damping_dt, *, pivots: bool, at_run_time: bool):
-    _check(chain, "q", q)
-    _check(chain, "qd", qd)
-    if u is not None:
-        _check(chain, "u", u)
-    chain = _prepared(chain, at_run_time=at_run_time)
-    return _derivation(chain).forward_dynamics(chain, *_operands(chain, q, qd, u),
-                                               implicit_damping_dt=implicit_damping_dt, pivots=pivots)
+    return prepare(tree, q=q, qd=qd, u=u).forward_dynamics(q, qd, u, implicit_damping_dt, pivots=True)
 
 
 def inverse_dynamics(
-    chain: Chain,
-    q: Float[ArrayLike, "*batch n"],
-    qd: Float[ArrayLike, "*batch n"],
-    qdd: Float[ArrayLike, "*batch n"],
-) -> Float[Array, "*batch n"]:
-    """The generalized forces ``M qdd + bias_forces(chain, q, qd)`` that produce the accelerations ``qdd``.
+    tree: Tree,
+    q: Float[ArrayLike, "*batch nq"],
+    qd: Float[ArrayLike, "*batch nv"],
+    qdd: Float[ArrayLike, "*batch nv"],
+) -> Float[Array, "*batch nv"]:
+    """The generalized forces ``M qdd + bias_forces(tree, q, qd)`` that produce the accelerations ``qdd``.
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`.
-        q: joint coordinates [rad or m], shape ``(*batch, n)``.
-        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
-        qdd: joint accelerations [rad/s^2 or m/s^2], shape ``(*batch, n)``.
+        tree: the :class:`lagrange.Tree`.
+        q: coordinates [rad or m], shape ``(*batch, nq)``.
+        qd: velocities [rad/s or m/s], shape ``(*batch, nv)``.
+        qdd: accelerations [rad/s^2 or m/s^2], shape ``(*batch, nv)``.
 
     Returns:
-        Shape ``(*batch, n)`` [N m or N]; equal to ``B u`` when ``qdd = forward_dynamics(chain, q, qd, u)``.
+        Shape ``(*batch, nv)`` [N m or N]; equal to ``B u`` when ``qdd = forward_dynamics(tree, q, qd, u)``.
     """
-    _check(chain, "qdd", qdd)
-    chain = check_parameters(chain)
-    if isinstance(chain, Tree) or _recursive(chain):
-        _check(chain, "q", q)
-        _check(chain, "qd", qd)
-        if isinstance(chain, Tree):
-            return spatial.inverse_dynamics(_folded(chain), jnp.asarray(q), jnp.asarray(qd), jnp.asarray(qdd))
-        return recursive.inverse_dynamics(chain, q, qd, qdd)
-    return jnp.einsum("...ij,...j->...i", mass_matrix(chain, q), qdd) + bias_forces(chain, q, qd)
+    return prepare(tree, q=q, qd=qd, qdd=qdd).inverse_dynamics(q, qd, qdd)
 
 
 def energy(
-    chain: Chain, q: Float[ArrayLike, "*batch n"], qd: Float[ArrayLike, "*batch n"]
+    tree: Tree, q: Float[ArrayLike, "*batch nq"], qd: Float[ArrayLike, "*batch nv"]
 ) -> tuple[Float[Array, " *batch"], Float[Array, " *batch"]]:
     """The kinetic and potential energy, the potential with every spring's.
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`.
-        q: joint coordinates [rad or m], shape ``(*batch, n)``.
-        qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
+        tree: the :class:`lagrange.Tree`.
+        q: coordinates [rad or m], shape ``(*batch, nq)``.
+        qd: velocities [rad/s or m/s], shape ``(*batch, nv)``.
 
     Returns:
-        ``(kinetic, potential)`` [J], each of shape ``(*batch,)``. The potential is gravity's (zero with the chain's
-        origin at z = 0), plus the joint springs' ``1/2 K (q - q_ref)^2``, the limits' ``1/2 ke (q - bound)^2`` outside
-        the ranges and the contact's ``1/2 ke d^2`` of the points below the ground.
+        ``(kinetic, potential)`` [J], each of shape ``(*batch,)``. The potential is gravity's (zero with the bodies'
+        centres of mass at the world's z = 0), plus the joint springs' ``1/2 K (q - q_ref)^2``, the limits'
+        ``1/2 ke (q - bound)^2`` outside the ranges and the contact's ``1/2 ke d^2`` of the points below the ground.
     """
-    _check(chain, "q", q)
-    _check(chain, "qd", qd)
-    chain = check_parameters(chain)
-    if isinstance(chain, Tree):
-        chain = _folded(chain)
-    return _derivation(chain).energy(chain, *_operands(chain, q, qd))
+    return prepare(tree, q=q, qd=qd).energy(q, qd)

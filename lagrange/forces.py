@@ -1,4 +1,5 @@
-"""Actuation: the controls' clamp into each motor's range, and the actuation matrix ``B``."""
+"""Actuation: the controls' clamp into each motor's range, and the actuation matrix ``B`` (of a tree, and of the
+planar backend's lowered chain)."""
 
 from __future__ import annotations
 
@@ -6,15 +7,14 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from lagrange.chain import Chain
 from lagrange.model.tree import Tree
 
 
-def clamp_controls(chain: Chain | Tree, u: Float[ArrayLike, "*batch m"]) -> Float[Array, "*batch m"]:
+def clamp_controls(chain: Tree, u: Float[ArrayLike, "*batch m"]) -> Float[Array, "*batch m"]:
     """Each control clamped into its joint's ``control_range``, as MuJoCo clamps a limited ``ctrl``.
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain` or :class:`~lagrange.model.tree.Tree`.
+        chain: the :class:`lagrange.Tree`.
         u: controls, shape ``(*batch, m)``.
 
     Returns:
@@ -28,17 +28,17 @@ def clamp_controls(chain: Chain | Tree, u: Float[ArrayLike, "*batch m"]) -> Floa
     return jnp.clip(u, lo.astype(u.dtype), hi.astype(u.dtype))
 
 
-def actuation_matrix(chain: Chain | Tree) -> Float[Array, "n m"]:
+def actuation_matrix(chain: Tree) -> Float[Array, "n m"]:
     """The actuation matrix ``B``: ``B[actuated[k], k] = gear[k]``, zero elsewhere.
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`.
+        chain: the :class:`lagrange.Tree`.
 
     Returns:
-        ``B``, shape ``(n, m)``. A chain with control ranges applies ``B`` to the clamped control
+        ``B``, shape ``(nv, m)``. A chain with control ranges applies ``B`` to the clamped control
         (:func:`clamp_controls`).
     """
-    B = jnp.zeros((chain.n, chain.m), dtype=jnp.result_type(float) if chain.gear is None else chain.gear.dtype)
+    B = jnp.zeros((chain.nv, chain.m), dtype=jnp.result_type(float) if chain.gear is None else chain.gear.dtype)
     for k, j in enumerate(chain.actuated):
         B = B.at[j, k].set(chain.gear[k])
     return B

@@ -15,9 +15,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from lagrange.kinematics import contact_point_positions, positions
-from lagrange.tasks import AbstractPoleTask, AbstractTask, TaskState, balanced
+from lagrange.kinematics import contact_point_positions, positions, tip_positions
 from lagrange.model.tree import Tree
+from lagrange.tasks import AbstractPoleTask, AbstractTask, TaskState, balanced
 
 __all__ = ["episode_figure", "episode_animation", "gait_figure", "gait_animation"]
 
@@ -70,6 +70,19 @@ def episode_figure(task: AbstractPoleTask, q, actions, path: str, *, qd=None, ti
     fig.savefig(path, dpi=110)
 
 
+def chain_outline(tree: Tree, q) -> jax.Array:
+    """A planar chain drawn as one line: its bodies' origins (the joints) and the last body's tip, as ``(x, z)`` rows
+    of the world's x-z plane, shape ``(*batch, bodies + 1, 2)``."""
+    points = jnp.concatenate([positions(tree, q), tip_positions(tree, q)[..., -1:, :]], axis=-2)
+    return points[..., ::2]
+
+
+def chain_reach(tree: Tree) -> float:
+    """How far a chain reaches from its first joint at most: the sum of its bodies' tips' distances from their
+    origins [m]."""
+    return float(sum(np.linalg.norm(np.asarray(b.tip)) for b in tree.bodies if b.tip is not None))
+
+
 def episode_animation(task: AbstractPoleTask, q, path: str, *, every: int | None = None) -> None:
     """Animate the chain through the coordinates ``q`` (T + 1, n) to ``path`` (GIF, one frame every ``every``
     control steps; default about 20 frames per simulated second)."""
@@ -77,8 +90,8 @@ def episode_animation(task: AbstractPoleTask, q, path: str, *, every: int | None
     from matplotlib.figure import Figure
 
     every = every or max(1, int(round(0.05 / task.dt)))
-    pts = np.asarray(jax.vmap(lambda x: positions(task.chain, x))(jnp.asarray(q)[::every]))
-    reach = float(np.sum(np.asarray(task.chain.length))) + 0.2
+    pts = np.asarray(jax.vmap(lambda x: chain_outline(task.chain, x))(jnp.asarray(q)[::every]))
+    reach = chain_reach(task.chain) + 0.2
     xs = pts[..., 0]
     fig = Figure(figsize=(6, 3.5) if task.cart else (4, 4))
     ax = fig.subplots()
@@ -160,20 +173,13 @@ def gait_animation(task: AbstractTask, q, path: str, *, every: int | None = None
     q = np.asarray(q)
     q = q[: None if seconds is None else int(round(seconds / task.dt)) + 1: every]
     pts = np.asarray(jax.vmap(lambda x: contact_point_positions(chain, x))(jnp.asarray(q)))
-    if isinstance(chain, Tree):  # the side view: x and z; a body's odd first point is a sphere's centre
-        pts = pts[..., [0, 2]]
-        radius = np.array([c[3] for b in chain.bodies for c in b.contacts])
-        counts = [len(b.contacts) for b in chain.bodies]
-        firsts = np.cumsum([0] + counts[:-1])
-        capsules = [(f + k, f + k + 1) for f, c in zip(firsts, counts) for k in range(c % 2, c - 1, 2)]
-        spheres = [f for f, c in zip(firsts, counts) if c % 2]
-    else:
-        if chain.contact_points is None:
-            raise ValueError("gait_animation draws a chain's capsules from its contact points; this chain has none")
-        radius = np.asarray(chain.contact_points)[:, 2]
-        links = np.asarray(chain.contact_links)
-        capsules = [(k, k + 1) for k in range(0, len(links) - 1, 2) if links[k] == links[k + 1]]
-        spheres = []
+    # the side view: x and z; a body's points pair up as capsules, an odd first one is a sphere's centre
+    pts = pts[..., [0, 2]]
+    radius = np.array([c[3] for b in chain.bodies for c in b.contacts])
+    counts = [len(b.contacts) for b in chain.bodies]
+    firsts = np.cumsum([0] + counts[:-1])
+    capsules = [(f + k, f + k + 1) for f, c in zip(firsts, counts) for k in range(c % 2, c - 1, 2)]
+    spheres = [f for f, c in zip(firsts, counts) if c % 2]
     if pts.shape[-2] == 0:
         raise ValueError("gait_animation draws the robot from its contact points; this one has none")
     ground = float(chain.contact.ground)

@@ -1,10 +1,11 @@
-"""System identification: fit a chain's physical parameters to observed trajectories through ``lagrange.simulate``.
+"""System identification: fit a tree's physical parameters to observed trajectories through ``lagrange.simulate``.
 
 :func:`identify` minimises the squared error between simulated and observed windows of a trajectory (each window
 restarted from its observed first state, so the error does not compound over a long horizon) over a parameter vector
-``theta`` that ``make_chain(theta)`` turns into a :class:`lagrange.Chain`: L-BFGS (``optax.lbfgs``, with its zoom line
+``theta`` that ``make_chain(theta)`` turns into a :class:`lagrange.Tree` (a planar :class:`lagrange.chain.Chain` or a
+3-D tree of bodies, balls and free joints): L-BFGS (``optax.lbfgs``, with its zoom line
 search) on the gradient ``jax.grad`` takes through the solver's steps, all iterations in one compiled ``lax.scan``.
-Any parameter a chain has can be identified this way (masses, lengths, inertias, damping, gears, gravity), and any
+Any parameter a tree has can be identified this way (masses, lengths, inertias, damping, gears, gravity), and any
 parametrisation (a log scale keeps a mass positive; a density ties a link's inertia to its mass).
 
 A fit whose iterates leave the parameters' valid range (a mass driven negative, a step too large for the guessed
@@ -26,7 +27,7 @@ import optax
 from jaxtyping import Array, ArrayLike, Float
 
 import lagrange as lg
-from lagrange.chain import Chain
+from lagrange.model.tree import Tree
 
 __all__ = ["Identified", "identify"]
 
@@ -36,7 +37,7 @@ class Identified(NamedTuple):
 
     Attributes:
         theta (Float[Array, "p"]): the best parameters found: those of the lowest finite loss.
-        chain (Chain): ``make_chain(theta)``.
+        chain (Tree): ``make_chain(theta)``.
         losses (Float[Array, "iterations+1"]): the loss before every iteration and after the last (non-finite where
             the simulation failed).
         best_iteration (int): the index into ``losses`` of ``theta``'s loss.
@@ -45,16 +46,16 @@ class Identified(NamedTuple):
     """
 
     theta: Float[Array, " p"]
-    chain: Chain
+    chain: Tree
     losses: Float[Array, " iterations+1"]
     best_iteration: int = 0
     failure: str | None = None
 
 
 def identify(
-    make_chain: Callable[[Float[Array, " p"]], Chain],
+    make_chain: Callable[[Float[Array, " p"]], Tree],
     theta0: Float[ArrayLike, " p"],
-    states: Float[ArrayLike, "W T+1 2n"],
+    states: Float[ArrayLike, "W T+1 nq+nv"],
     controls: Float[ArrayLike, "W T m"] | None,
     dt: float,
     solver=lg.RK4(),
@@ -64,9 +65,9 @@ def identify(
     """Fit ``theta`` so that ``make_chain(theta)`` reproduces observed windows of trajectories.
 
     Args:
-        make_chain: ``theta -> Chain``, differentiable in ``theta``.
+        make_chain: ``theta -> Tree``, differentiable in ``theta``.
         theta0: the starting guess, shape ``(p,)``.
-        states: ``W`` observed windows of ``T`` steps, each row ``(q, qd)``: shape ``(W, T + 1, 2 n)``.
+        states: ``W`` observed windows of ``T`` steps, each row ``(q, qd)``: shape ``(W, T + 1, nq + nv)``.
         controls: the controls held over each step, ``(W, T, m)``; ``None`` for a chain without actuators.
         dt: the step [s], > 0; ``solver`` the integrator that produced (or models) the data.
         iterations: L-BFGS iterations, >= 1.
@@ -76,20 +77,24 @@ def identify(
     metres and radians weigh alike).
 
     Raises:
-        ValueError: for shapes that do not match the chain, ``dt <= 0`` or ``iterations < 1``.
+        ValueError: for shapes that do not match the tree, ``dt <= 0`` or ``iterations < 1``.
+        TypeError: for a ``make_chain`` that does not return a :class:`lagrange.Tree`.
     """
     theta0 = jnp.asarray(theta0)
     states = jnp.asarray(states)
     chain0 = make_chain(theta0)
-    if not isinstance(chain0, Chain):
-        raise TypeError(f"identify: make_chain(theta) must return a lagrange.Chain, got {type(chain0).__name__}")
+    if not isinstance(chain0, Tree):
+        raise TypeError(f"identify: make_chain(theta) must return a lagrange.Tree (a lagrange.chain.Chain is one), "
+                        f"got {type(chain0).__name__}")
     for name, data in (("states", states), ("controls", controls)):
         if data is not None and not bool(jnp.all(jnp.isfinite(jnp.asarray(data)))):
             raise ValueError(f"identify: {name} must be finite; the data hold a NaN or an infinity at "
                              f"{np.argwhere(~np.isfinite(np.asarray(data)))[0].tolist()}")
-    n, m = chain0.n, chain0.m
-    if states.ndim != 3 or states.shape[-1] != 2 * n or states.shape[1] < 2:
-        raise ValueError(f"identify: states must have shape (windows, T + 1 >= 2, 2 n = {2 * n}), got {states.shape}")
+    n, m = chain0.nq, chain0.m
+    width = chain0.nq + chain0.nv
+    if states.ndim != 3 or states.shape[-1] != width or states.shape[1] < 2:
+        raise ValueError(f"identify: states must have shape (windows, T + 1 >= 2, nq + nv = {width}), got "
+                         f"{states.shape}")
     windows, steps = states.shape[0], states.shape[1] - 1
     if m:
         if controls is None or jnp.shape(controls) != (windows, steps, m):
@@ -110,7 +115,7 @@ def identify(
     scale = jnp.where(scale > 0, scale, 1.0)
 
     def scaled_errors(theta):
-        """The simulated windows' errors, scaled, ``(W, T, 2 n)``; non-finite where a simulation failed."""
+        """The simulated windows' errors, scaled, ``(W, T, nq + nv)``; non-finite where a simulation failed."""
         chain = make_chain(theta)
 
         def window(x, u):

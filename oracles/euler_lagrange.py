@@ -17,6 +17,14 @@ import jax
 import jax.numpy as jnp
 
 from lagrange.chain import Chain
+from lagrange.model.tree import Tree
+from lagrange.planar.lower import lower
+
+
+def _planar(chain):
+    """The planar parameters the derivation reads: a tree lowered to its links (its masses, lengths, centres of mass
+    and inertias), once; the lowered chain as it is."""
+    return lower(chain) if isinstance(chain, Tree) else chain
 
 
 def _d(phi):
@@ -30,6 +38,7 @@ def _e(phi):
 def com_and_angles(chain: Chain, q):
     """Centres of mass ``(n, 2)`` and absolute link angles ``(n,)`` by plain forward kinematics: each link's joint at
     its attach point on its parent (``p_parent + x e - z d``, default the parent's tip ``l_parent d``)."""
+    chain = _planar(chain)
     origins, phis, coms = [], [], []
     normal = jnp.zeros(chain.n, q.dtype) if chain.com_normal is None else chain.com_normal
     attach = dict(zip(chain.attached, [] if chain.attach is None else list(chain.attach)))
@@ -55,6 +64,7 @@ def com_and_angles(chain: Chain, q):
 def energy(chain: Chain, q, qd):
     """``(T, V)``: the kinetic energy from the centres of mass' velocities and the links' angular rates (one ``jvp``
     of the forward kinematics), and the potential ``sum_i m_i g z_i``."""
+    chain = _planar(chain)
 
     def kin(q):
         return com_and_angles(chain, q)
@@ -71,15 +81,18 @@ def energy(chain: Chain, q, qd):
 
 
 def lagrangian(chain: Chain, q, qd):
+    chain = _planar(chain)
     T, V = energy(chain, q, qd)
     return T - V
 
 
 def mass_matrix(chain: Chain, q):
+    chain = _planar(chain)
     return jax.hessian(lagrangian, argnums=2)(chain, q, jnp.zeros_like(q))
 
 
 def bias_forces(chain: Chain, q, qd):
+    chain = _planar(chain)
     dL_dqd = jax.grad(lagrangian, argnums=2)
     mixed = jax.jacfwd(dL_dqd, argnums=1)(chain, q, qd)
     out = mixed @ qd - jax.grad(lagrangian, argnums=1)(chain, q, qd)
@@ -90,6 +103,7 @@ def bias_forces(chain: Chain, q, qd):
 
 def accelerations(chain: Chain, M, bias, u=None):
     """``qdd`` solving ``M qdd = B u - bias`` for the mass matrix and bias forces given (``jnp.linalg.solve``)."""
+    chain = _planar(chain)
     tau = jnp.zeros(bias.shape, bias.dtype)
     if u is not None and chain.m:
         tau = tau.at[jnp.array(chain.actuated)].add(chain.gear * u)
@@ -97,4 +111,5 @@ def accelerations(chain: Chain, M, bias, u=None):
 
 
 def forward_dynamics(chain: Chain, q, qd, u=None):
+    chain = _planar(chain)
     return accelerations(chain, mass_matrix(chain, q), bias_forces(chain, q, qd), u)

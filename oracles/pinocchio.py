@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from lagrange.chain import Chain
+from lagrange.planar.lower import lower
 
 
 def pinocchio_model(chain: Chain):
@@ -15,6 +16,7 @@ def pinocchio_model(chain: Chain):
     its offset."""
     import pinocchio as pin
 
+    chain = lower(chain)  # the planar parameters: masses, lengths, centres of mass, frame offsets
     model = pin.Model()
     model.gravity.linear = np.array([0.0, 0.0, -float(chain.gravity)])
     attach = dict(zip(chain.attached, np.asarray(chain.attach) if chain.attach is not None else []))

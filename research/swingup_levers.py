@@ -47,7 +47,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-import lagrange as lg
+from lagrange.plotting import chain_outline  # noqa: E402
 from optim import CEAPGConfig, episode, evaluate, train
 from optim.checkpoint import write_json
 from optim.devices import use_cpu_cores
@@ -77,7 +77,7 @@ def velocity_objective(task, weight: float):
 
 def tip_rewards(task, q, qd):
     """The fork's tip reward of every step ``(..., T)`` from an episode's ``q, qd`` of shape ``(..., T + 1, n)``."""
-    tip = lg.positions(task.chain, q[..., :-1, :])[..., -1, :]  # (..., T, 2): (x, z) before each step
+    tip = chain_outline(task.chain, q[..., :-1, :])[..., -1, :]  # (..., T, 2): (x, z) before each step
     dth = qd[..., 1:, task.first_pole:]
     return 10.0 - (0.05 * tip[..., 0] ** 2 + (tip[..., 1] - 2.0) ** 2) - (0.01 * dth[..., 0] ** 2
                                                                             + 0.005 * dth[..., 1] ** 2)

@@ -28,6 +28,7 @@ import pytest
 
 import lagrange as lg
 from lagrange.chain import Chain, Link
+from lagrange.planar.lower import lower as planar
 from lagrange.interop.mjcf import to_mjcf
 
 
@@ -71,7 +72,8 @@ def random_chain(rng, n, damped=0.5, *, cart=False, gravity=None, frames=False):
             )
             for lk in chain.links()
         ]
-        return Chain(links, gravity=9.81 if chain.gravity is None else chain.gravity)
+        g = planar(chain).gravity
+        return Chain(links, gravity=9.81 if g is None else g)
     links = []
     for i in range(n):
         base_cart = cart and i == 0
@@ -151,9 +153,23 @@ def seeded_chain(seed: int, *, slide_below_hinge: bool = True) -> Chain:
     return Chain(links, gravity=9.81)
 
 
+def rebuilt(chain: Chain, *, gravity=None, **per_link) -> Chain:
+    """``chain`` built again from its links (:meth:`lagrange.chain.Chain.links`) with some of their parameters
+    replaced: ``per_link`` arrays ``(n,)`` (``mass=``, ``length=``, ``inertia=``, ``damping=``, ...), entry ``i`` for
+    link ``i``, and ``gravity``; the values may be traced (a derivative with respect to them through the builder, as the
+    old chain's parameter arrays were differentiated)."""
+    import dataclasses
+
+    links = [dataclasses.replace(lk, **{k: v[i] for k, v in per_link.items()}) for i, lk in enumerate(chain.links())]
+    g = planar(chain).gravity
+    return Chain(links, gravity=(0.0 if g is None else g) if gravity is None else gravity, contact=chain.contact,
+                 limits=chain.limits)
+
+
 def has_slide_below_hinge(chain: Chain) -> bool:
-    first_revolute = chain.joints.index("revolute") if "revolute" in chain.joints else chain.n
-    return "prismatic" in chain.joints[first_revolute:]
+    joints = planar(chain).joints
+    first_revolute = joints.index("revolute") if "revolute" in joints else len(joints)
+    return "prismatic" in joints[first_revolute:]
 
 
 def mujoco_model(chain: Chain, dt: float, integrator: str = "Euler"):
@@ -209,8 +225,8 @@ def mujoco_terms(model, q, qd, u):
 
 def random_problem(chain: Chain, seed: int, steps: int = 500, *, scale=0.3, control_scale=1.0):
     rng = np.random.default_rng(seed)
-    q0 = scale * rng.standard_normal(chain.n)
-    qd0 = scale * rng.standard_normal(chain.n)
+    q0 = scale * rng.standard_normal(chain.nq)
+    qd0 = scale * rng.standard_normal(chain.nv)
     us = control_scale * rng.standard_normal((steps, chain.m))
     return q0, qd0, us
 

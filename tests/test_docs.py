@@ -7,6 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import lagrange as lg
+from lagrange.planar.lower import lower as planar
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
 
@@ -27,11 +28,13 @@ def run_page(page: str, scope: dict | None = None) -> dict:
 
 def test_getting_started_runs_and_shapes_are_as_stated():
     s = run_page("getting-started.md")
-    # "Define a chain": chain.n is 4, chain.m is 3, M is (4, 4), one mass gradient per link
+    # "Define a chain": chain.nq = chain.nv = 4, chain.m is 3, M is (4, 4), one mass gradient per link
     assert (s["M"].shape, s["dmass"].shape) == ((4, 4), (4,))
     assert np.all(np.isfinite(np.asarray(s["dmass"])))
-    # "Trees, springs, contact and limits": a cart carrying two pendulums side by side
-    assert s["tree"].parents == (-1, 0, 0) and s["tree"].children(0) == (1, 2)
+    # "Trees, springs, contact and limits": a cart carrying two pendulums side by side, a planar Tree
+    assert s["tree"].parents == (-1, 0, 0) and s["tree"].planar and isinstance(s["tree"], lg.Tree)
+    assert planar(s["tree"]).children(0) == (1, 2)
+    assert s["points"].shape == (4, 3) and np.all(np.asarray(s["points"])[:, 1] == 0)  # (x, 0, z) rows
     # "Simulate": (301, 2) states and (300, 1) controls for 300 intervals of the acrobot
     assert s["traj"].q.shape == (301, 2) and s["traj"].u.shape == (300, 1)
     # "Gradients": a Chain of parameter gradients, and one per control
@@ -59,17 +62,17 @@ def test_solvers_page_snippet_runs():
 def test_conventions_biped_is_as_described():
     s = run_page("conventions.md")
     biped = s["biped"]
-    assert biped.parents == (-1, 0, 1, 2, 3, 2, 5) and biped.children(2) == (3, 5)
-    assert biped.path(6) == (0, 1, 2, 5, 6) and not biped.serial
+    assert biped.parents == (-1, 0, 1, 2, 3, 2, 5) and planar(biped).children(2) == (3, 5)
+    assert planar(biped).path(6) == (0, 1, 2, 5, 6) and not planar(biped).serial
     # the back thigh's attach point (-0.1, 0) in the upright torso's frame is x = +0.1 in the world; the feet
-    np.testing.assert_allclose(np.asarray(lg.positions(biped, jnp.zeros(7))[5]), [0.1, 0.0], atol=1e-15)
+    np.testing.assert_allclose(np.asarray(lg.positions(biped, jnp.zeros(7))[5, ::2]), [0.1, 0.0], atol=1e-15)
     np.testing.assert_allclose(np.asarray(s["tips"])[[4, 6]], [[0.0, -0.8], [0.1, -0.8]], atol=1e-15)
 
 
 def test_contact_page_snippet_runs():
     s = run_page("contact.md")
     traj, biped = s["traj"], s["biped"]
-    assert traj.q.shape == (301, 7) and biped.contact_links == (4, 6) and biped.limited == (3, 4, 5, 6)
+    assert traj.q.shape == (301, 7) and planar(biped).contact_links == (4, 6) and planar(biped).limited == (3, 4, 5, 6)
     assert float(jnp.min(traj.q[:, 1])) < 0.0  # it landed: the feet sank below their starting height's 10 cm
     assert s["kinetic"].shape == s["potential"].shape == (301,)
     assert np.isfinite(float(s["dke"])) and float(s["dke"]) != 0.0  # the contact is felt

@@ -15,14 +15,14 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import ArrayLike, Float
 
-from lagrange.chain import Chain
+from lagrange.model.tree import Tree
 from lagrange.integrate import Trajectory, simulate
 
 __all__ = ["simulate_batch"]
 
 
 def simulate_batch(
-    chain: Chain,
+    chain: Tree,
     q0: Float[ArrayLike, "B n"],
     qd0: Float[ArrayLike, "B n"],
     controls: Float[ArrayLike, "B T m"] | Float[ArrayLike, "T m"] | Any | None,
@@ -52,9 +52,9 @@ def simulate_batch(
             ``B``; and whatever :func:`simulate` raises for its arguments.
     """
     q0, qd0 = jnp.asarray(q0), jnp.asarray(qd0)
-    if q0.ndim != 2 or q0.shape[1] != chain.n or qd0.shape != q0.shape:
-        raise ValueError(f"simulate_batch: q0 and qd0 must both have shape (B, {chain.n}) for this chain, got "
-                         f"{q0.shape} and {qd0.shape}")
+    if q0.ndim != 2 or q0.shape[1] != chain.nq or qd0.ndim != 2 or qd0.shape != (q0.shape[0], chain.nv):
+        raise ValueError(f"simulate_batch: q0 and qd0 must have shapes (B, {chain.nq}) and (B, {chain.nv}) for this "
+                         f"tree, got {q0.shape} and {qd0.shape}")
     batch = q0.shape[0]
     per_member = controls is not None and not callable(controls) and jnp.ndim(controls) == 3
     if per_member and jnp.shape(controls)[0] != batch:
@@ -74,7 +74,7 @@ def simulate_batch(
                 f"that did); simulate(chain, q0[{i}], qd0[{i}], ...) alone reproduces it: reduce dt, raise substeps or "
                 "check the chain's parameters and that member's start and controls" for i in range(batch)]
     last = eqx.branched_error_if(last, jnp.any(bad), jnp.argmax(bad), messages)
-    n = chain.n
+    n = chain.nq
     q = traj.q.at[:, -1].set(last[:, :n])
     qd = traj.qd.at[:, -1].set(last[:, n:])
     return Trajectory(t=traj.t, q=q, qd=qd, u=traj.u)

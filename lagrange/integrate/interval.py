@@ -1,11 +1,12 @@
-"""One control interval of a chain or tree: the solvers' steps, fixed or adaptive, on the coordinates' manifold.
+"""One control interval of a tree: the solvers' steps, fixed or adaptive, on the coordinates' manifold.
 
 Fixed-step explicit Runge-Kutta solvers run from their diffrax Butcher tableau, unrolled, zero coefficients and unused
 stages dropped while tracing; a tree's coordinates move through its joints (quaternions by the exponential map: the
-stage and final coordinates from the step's start by the weighted velocity sum, MuJoCo's ``mj_RungeKutta``).
-Semi-implicit Euler is MuJoCo's, Brax's and DFlex's step; symplectic Euler in momenta (MomentumEuler) runs on planar
-chains. Adaptive steps and diffrax adjoints run each interval through ``diffrax.diffeqsolve``. :func:`lagrange.simulate`
-and :func:`lagrange.step` check the arguments and call :func:`interval_map`.
+stage and final coordinates from the step's start by the weighted velocity sum, MuJoCo's ``mj_RungeKutta``), a planar
+tree's as a vector. Semi-implicit Euler is MuJoCo's, Brax's and DFlex's step; symplectic Euler in momenta
+(MomentumEuler) runs where the coordinates are a vector. Adaptive steps and diffrax adjoints run each interval through
+``diffrax.diffeqsolve``. :func:`lagrange.simulate` and :func:`lagrange.step` check the arguments, prepare the backend
+(:func:`lagrange.dynamics.backend`) and call :func:`interval_map`, which calls the backend's methods only.
 """
 
 from __future__ import annotations
@@ -15,23 +16,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from lagrange import rbda as spatial
-from lagrange.math.linalg import spd_solver
-from lagrange.forces import actuation_matrix, clamp_controls
-from lagrange.chain import Chain
-from lagrange.dynamics import bias_forces, energy, forward_dynamics, gravity_forces, mass_matrix
+from lagrange.backend import AbstractBackend
 from lagrange.integrate.solvers import MomentumEuler, SemiImplicitEuler, is_adaptive_capable
-from lagrange.model.tree import Tree
+from lagrange.math.linalg import spd_solver
 
 __all__ = ["interval_map"]
-
-
-def _move(chain, q, v, h):
-    """``q`` moved by the velocities ``v`` for ``h`` seconds: ``q + h v``, or on a tree's joint manifold (its
-    quaternions by the exponential map, kept unit: :func:`lagrange.rbda.integrate_positions`)."""
-    if isinstance(chain, Tree):
-        return spatial.integrate_positions(chain, q, v, h)
-    return q + h * v
 
 
 def _needed_stages(tableau) -> list[bool]:
@@ -58,9 +47,9 @@ def _axpy(y, h, coeffs, ks):
     return tuple(out)
 
 
-def _erk_step(f, tableau, h, y, chain=None):
-    if isinstance(chain, Tree):
-        return _rkmk_step(chain, f, tableau, h, y)
+def _erk_step(b: AbstractBackend, f, tableau, h, y):
+    if not b.euclidean:
+        return _rkmk_step(b, f, tableau, h, y)
     need = _needed_stages(tableau)
     ks = [None] * len(need)
     for i, needed in enumerate(need):
@@ -77,7 +66,7 @@ def _weighted(coeffs, xs):
     return sum(terms[1:], terms[0]) if terms else None
 
 
-def _rkmk_step(tree, f, tableau, h, y):
+def _rkmk_step(b: AbstractBackend, f, tableau, h, y):
     """An explicit Runge-Kutta step on a tree's coordinates (Runge-Kutta-Munthe-Kaas): every stage at
     ``q0 exp(h d_i)`` with ``d_i = sum_j a_ij K_j``, ``K_j`` stage ``j``'s velocity as the rate of its tangent
     increment (:func:`lagrange.rbda.dexpinv`; the velocity itself for hinges, slides and positions), the step to
@@ -95,70 +84,71 @@ def _rkmk_step(tree, f, tableau, h, y):
             continue
         a = tableau.a_lower[i - 1]
         d, dv = _weighted(a, K[:i]), _weighted(a, acc[:i])
-        qi = q0 if d is None else spatial.integrate_positions(tree, q0, d, h)
+        qi = q0 if d is None else b.move(q0, d, h)
         v, acc[i] = f((qi, qd0 if dv is None else qd0 + h * dv))
-        K[i] = v if d is None else spatial.dexpinv(tree, h * d, v)
+        K[i] = v if d is None else b.dexpinv(h * d, v)
     d, dv = _weighted(tableau.b_sol, K), _weighted(tableau.b_sol, acc)
-    return spatial.integrate_positions(tree, q0, d, h), qd0 + h * dv
+    return b.move(q0, d, h), qd0 + h * dv
 
 
-def _momentum_euler_step(chain: Chain, iterations: int, h, q, qd, u):
+def _momentum_euler_step(b: AbstractBackend, iterations: int, h, q, qd, u):
     """One step of :class:`lagrange.MomentumEuler` (see its docstring for the scheme)."""
-    M = mass_matrix(chain, q)
+    M = b.mass_matrix(q)
     p = jnp.einsum("...ij,...j->...i", M, qd)
-    force = -gravity_forces(chain, q)
-    if chain.stiffness is not None:  # the joint springs, a potential force like gravity
-        force = force - chain.stiffness * (q - chain.springref)
-    if u is not None and chain.m:
-        force = force + jnp.einsum("ij,...j->...i", actuation_matrix(chain), u)
-    A = M if chain.damping is None else M + h * jnp.diag(chain.damping)
+    force = -b.gravity_forces(q)
+    springs = b.spring_forces(q)  # the joint springs, a potential force like gravity
+    if springs is not None:
+        force = force - springs
+    actuation = None if u is None else b.actuation(u)
+    if actuation is not None:
+        force = force + actuation
+    A = M if b.damping is None else M + h * jnp.diag(b.damping)
     solve = spd_solver(A)
     # dT/dq at fixed v; the sum over a batch leaves each state's gradient its own
-    dkin_dq = jax.grad(lambda q_, v: jnp.sum(energy(chain, q_, v)[0]))
+    dkin_dq = jax.grad(lambda q_, v: jnp.sum(b.energy(q_, v)[0]))
     v = qd
     for _ in range(iterations):
         v = solve(p + h * (force + dkin_dq(q, v)))
     q1 = q + h * v
     p1 = jnp.einsum("...ij,...j->...i", M, v)
-    return q1, spd_solver(mass_matrix(chain, q1))(p1)
+    return q1, spd_solver(b.mass_matrix(q1))(p1)
 
 
-def _fixed_substep(chain: Chain, solver, h, q, qd, u):
+def _fixed_substep(b: AbstractBackend, solver, h, q, qd, u):
     if isinstance(solver, MomentumEuler):
-        return _momentum_euler_step(chain, solver.iterations, h, q, qd, u)
+        return _momentum_euler_step(b, solver.iterations, h, q, qd, u)
     if isinstance(solver, SemiImplicitEuler):
-        qdd = forward_dynamics(chain, q, qd, u, implicit_damping_dt=h if solver.implicit_damping else None,
-                               check=False)
+        qdd = b.forward_dynamics(q, qd, u, h if solver.implicit_damping else None)
         qd1 = qd + h * qdd
-        return _move(chain, q, qd1, h), qd1
+        return b.move(q, qd1, h), qd1
 
     def f(y):
-        return (y[1], forward_dynamics(chain, y[0], y[1], u, check=False))
+        return (y[1], b.forward_dynamics(y[0], y[1], u))
 
     if isinstance(solver, diffrax.Euler):
         qdd = f((q, qd))[1]
-        return _move(chain, q, qd, h), qd + h * qdd
-    return _erk_step(f, solver.tableau, h, (q, qd), chain)
+        return b.move(q, qd, h), qd + h * qdd
+    return _erk_step(b, f, solver.tableau, h, (q, qd))
 
 
-def _held_mass_matrix_interval(chain: Chain, solver: SemiImplicitEuler, h, substeps: int):
+def _held_mass_matrix_interval(b: AbstractBackend, solver: SemiImplicitEuler, h, substeps: int):
     """Semi-implicit Euler with ``M`` (``+ h diag(damping)`` with implicit damping) formed and Cholesky-factored once
     at the interval's start and used by every substep; the forces ``B u - bias`` of every substep's own state. (An
     LDL^T unrolled over the entries ran as fast and compiled 4x longer for the cheetah's 9 dof.)"""
 
     def interval(q, qd, u):
-        M = mass_matrix(chain, q)
-        if solver.implicit_damping and chain.damping is not None:
-            M = M + h * jnp.diag(chain.damping)
+        M = b.mass_matrix(q)
+        if solver.implicit_damping and b.damping is not None:
+            M = M + h * jnp.diag(b.damping)
         solve = spd_solver(M)
-        Bu = 0.0 if u is None or not chain.m else jnp.einsum("ij,...j->...i", actuation_matrix(chain),
-                                                             clamp_controls(chain, u))
+        Bu = None if u is None else b.actuation(u)
+        Bu = 0.0 if Bu is None else Bu
 
         def body(carry, _):
             q, qd = carry
-            qdd = solve(Bu - bias_forces(chain, q, qd))
+            qdd = solve(Bu - b.bias_forces(q, qd))
             qd1 = qd + h * qdd
-            return (_move(chain, q, qd1, h), qd1), None
+            return (b.move(q, qd1, h), qd1), None
 
         return jax.lax.scan(_remat(solver, body), (q, qd), None, length=substeps)[0]
 
@@ -170,9 +160,9 @@ def _remat(solver, body):
     return jax.checkpoint(body) if isinstance(solver, SemiImplicitEuler) and solver.checkpoint_substeps else body
 
 
-def interval_map(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps):
-    """The map ``(q, qd, u) -> (q, qd)`` over one control interval of ``dt`` seconds (the arguments as
-    :func:`lagrange.simulate` takes them, checked there)."""
+def interval_map(b: AbstractBackend, solver, dt, substeps, adjoint, rtol, atol, max_steps):
+    """The map ``(q, qd, u) -> (q, qd)`` over one control interval of ``dt`` seconds of the prepared tree ``b`` (the
+    other arguments as :func:`lagrange.simulate` takes them, checked there)."""
     adaptive = rtol is not None or atol is not None
     if adaptive:
         if rtol is None or atol is None:
@@ -184,34 +174,32 @@ def interval_map(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps):
                 f"{type(solver).__name__} has no embedded error estimate, so rtol/atol cannot be used; "
                 "use Tsit5(), Dopri5() or Dopri8() for adaptive steps, or drop rtol/atol"
             )
-    if isinstance(chain, Tree) and isinstance(solver, MomentumEuler):
-        raise NotImplementedError("MomentumEuler runs on planar chains only (its canonical momenta assume nq = nv); "
-                                  "use SemiImplicitEuler, RK4 or an adaptive solver for a lagrange.model.tree.Tree")
+    if not b.euclidean and isinstance(solver, MomentumEuler):
+        raise NotImplementedError("MomentumEuler runs on planar trees only (its canonical momenta assume coordinates "
+                                  "that the velocities integrate, nq = nv); use SemiImplicitEuler, RK4 or an adaptive "
+                                  "solver for a tree with balls or free joints or hinges about several axes")
     if isinstance(solver, (SemiImplicitEuler, MomentumEuler)) and adjoint is not None:
         raise ValueError(f"{type(solver).__name__} runs outside diffeqsolve; pass adjoint=None")
     h = dt / substeps
 
     if isinstance(solver, SemiImplicitEuler) and solver.hold_mass_matrix:
-        return _held_mass_matrix_interval(chain, solver, h, substeps)
+        return _held_mass_matrix_interval(b, solver, h, substeps)
 
     if not adaptive and adjoint is None:
 
         def interval(q, qd, u):
             if substeps == 1:
-                return _fixed_substep(chain, solver, h, q, qd, u)
+                return _fixed_substep(b, solver, h, q, qd, u)
 
             def body(carry, _):
-                return _fixed_substep(chain, solver, h, *carry, u), None
+                return _fixed_substep(b, solver, h, *carry, u), None
 
             return jax.lax.scan(_remat(solver, body), (q, qd), None, length=substeps)[0]
 
         return interval
 
-    if isinstance(chain, Tree):  # the coordinates in R^nq, dq/dt from the joints; the quaternions renormalised
-        term = diffrax.ODETerm(lambda t, y, u: (spatial.position_derivative(chain, y[0], y[1]),
-                                                forward_dynamics(chain, y[0], y[1], u, check=False)))
-    else:
-        term = diffrax.ODETerm(lambda t, y, u: (y[1], forward_dynamics(chain, y[0], y[1], u, check=False)))
+    # the coordinates in R^nq, dq/dt from the joints (a quaternion's 1/2 q (0, w)); the quaternions renormalised
+    term = diffrax.ODETerm(lambda t, y, u: (b.rate(y[0], y[1]), b.forward_dynamics(y[0], y[1], u)))
     controller = (
         diffrax.PIDController(rtol=rtol, atol=atol) if adaptive else diffrax.ConstantStepSize()
     )
@@ -233,6 +221,6 @@ def interval_map(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps):
             max_steps=max_steps if adaptive else substeps,
         )
         q1 = sol.ys[0][0]
-        return spatial.normalize_quaternions(chain, q1) if isinstance(chain, Tree) else q1, sol.ys[1][0]
+        return b.normalize(q1), sol.ys[1][0]
 
     return interval

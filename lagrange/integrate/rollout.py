@@ -1,6 +1,6 @@
-"""Time integration of a chain under piecewise-constant controls, on diffrax.
+"""Time integration of a tree under piecewise-constant controls, on diffrax.
 
-:func:`simulate` rolls a chain out over ``T`` control intervals of length ``dt``; :func:`step`
+:func:`simulate` rolls a tree out over ``T`` control intervals of length ``dt``; :func:`step`
 advances one interval (for RL loops). Within an interval the control is held constant and the
 solver takes ``substeps`` fixed steps of ``dt / substeps``, or adaptive steps when ``rtol`` and
 ``atol`` are given.
@@ -26,11 +26,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from lagrange import rbda as spatial
-from lagrange.chain import Chain
-from lagrange.model.checks import check_parameters
-from lagrange.integrate.solvers import RK4, MomentumEuler, SemiImplicitEuler, check_solver
+from lagrange.dynamics import backend, prepare
 from lagrange.integrate.interval import interval_map
+from lagrange.integrate.solvers import RK4, MomentumEuler, SemiImplicitEuler, check_solver
 from lagrange.model.tree import Tree
 
 
@@ -88,9 +86,9 @@ def _check_steps(steps):
         raise ValueError(f"steps must be None or an integer >= 1 (the number of control intervals), got {steps!r}")
 
 
-def _float_dtype(chain: Chain, *arrays):
-    """The float dtype a rollout runs in: the chain's parameters' promoted with that of every floating input."""
-    leaves = [x for x in jax.tree_util.tree_leaves(chain) if eqx.is_inexact_array(x)]
+def _float_dtype(tree: Tree, *arrays):
+    """The float dtype a rollout runs in: the tree's parameters' promoted with that of every floating input."""
+    leaves = [x for x in jax.tree_util.tree_leaves(tree) if eqx.is_inexact_array(x)]
     floats = [x.dtype for x in arrays if x is not None and jnp.issubdtype(x.dtype, jnp.floating)]
     return jnp.result_type(*[x.dtype for x in leaves], *floats) if leaves or floats else jnp.result_type(float)
 
@@ -104,8 +102,8 @@ def _real_array(name: str, x):
     return x
 
 
-def _unit_quaternions(tree: Tree, q):
-    """``q`` with its quaternions normalised (MuJoCo reads them so); a concrete zero quaternion is refused."""
+def _no_zero_quaternion(tree: Tree, q):
+    """A concrete zero quaternion in ``q`` refused by name (any other length is normalised, as MuJoCo reads them)."""
     if not isinstance(q, jax.core.Tracer):
         for link, j in enumerate(tree.joints):
             if j.nq > j.nv:
@@ -114,17 +112,16 @@ def _unit_quaternions(tree: Tree, q):
                     raise ValueError(f"q0[{tree.qadr[link] + j.nq - 4}:{tree.qadr[link] + j.nq}] is joint {link}'s "
                                      f"quaternion and must not be zero (any non-zero length is normalised), got "
                                      f"{quat.tolist()}")
-    return spatial.normalize_quaternions(tree, q)
 
 
-def _check_state(chain, q, qd):
-    for name, x, size in (("q0", q, getattr(chain, "nq", chain.n)), ("qd0", qd, chain.n)):
+def _check_state(tree: Tree, q, qd):
+    for name, x, size in (("q0", q, tree.nq), ("qd0", qd, tree.nv)):
         if jnp.shape(x) != (size,):
-            raise ValueError(f"{name} must have shape ({size},) for this chain, got {jnp.shape(x)}")
+            raise ValueError(f"{name} must have shape ({size},) for this tree, got {jnp.shape(x)}")
 
 
 def simulate(
-    chain: Chain,
+    tree: Tree,
     q0: Float[ArrayLike, " n"],
     qd0: Float[ArrayLike, " n"],
     controls: Float[ArrayLike, "T m"] | Callable[[Float[Array, ""], Float[Array, " n"], Float[Array, " n"]],
@@ -140,11 +137,12 @@ def simulate(
     max_steps: int = 4096,
     check: bool = True,
     checkpoint: bool = True,
+    general: bool = False,
 ) -> Trajectory:
-    """Roll a chain out from ``(q0, qd0)`` over ``T`` intervals of ``dt`` seconds.
+    """Roll a tree out from ``(q0, qd0)`` over ``T`` intervals of ``dt`` seconds.
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`.
+        tree: the :class:`lagrange.Tree` (a :class:`~lagrange.chain.Chain` is one).
         q0: initial joint coordinates [rad or m], shape ``(n,)`` (a tree's: ``(nq,)``, its quaternions normalised
             here, a zero one refused); integers and lower-precision floats are converted to the chain's float
             dtype, booleans and complex numbers refused.
@@ -168,6 +166,8 @@ def simulate(
         checkpoint: with fixed steps and ``adjoint=None``, recompute each interval's
             intermediates in the backward pass (``jax.checkpoint``) instead of storing them:
             memory O(T) states only, and 2-3x faster gradients for cheap dynamics on a CPU.
+        general: run the general rigid-body algorithms even on a planar tree (:func:`lagrange.dynamics.backend`), a
+            cross-check of the planar backend; ``False`` (the default) lets the tree's structure choose.
 
     Returns:
         A :class:`Trajectory` with ``t``, ``q``, ``qd`` of leading length ``T + 1`` and ``u``.
@@ -179,25 +179,25 @@ def simulate(
             controls.
         equinox.EquinoxRuntimeError: (when run, with ``check=True``) if the final state is not finite.
     """
-    if not isinstance(chain, (Chain, Tree)):
-        raise TypeError(f"chain must be a lagrange.chain.Chain or a lagrange.Tree, got {type(chain).__name__}")
+    if not isinstance(tree, Tree):
+        raise TypeError(f"tree must be a lagrange.Tree (a lagrange.chain.Chain is one), got {type(tree).__name__}")
     check_solver(solver)
     _check_dt(dt)
     _check_substeps(substeps)
     _check_steps(steps)
     _check_max_steps(max_steps)
     q0, qd0 = _real_array("q0", q0), _real_array("qd0", qd0)
-    _check_state(chain, q0, qd0)
+    _check_state(tree, q0, qd0)
     arrays = not callable(controls) and controls is not None
     us = _real_array("controls", controls) if arrays else None
-    dtype = _float_dtype(chain, q0, qd0, us)
+    dtype = _float_dtype(tree, q0, qd0, us)
     q0, qd0 = q0.astype(dtype), qd0.astype(dtype)
-    if isinstance(chain, Tree):
-        q0 = _unit_quaternions(chain, q0)
-    chain = check_parameters(chain, at_run_time=check)  # once, before the loop (concrete ones while tracing)
+    _no_zero_quaternion(tree, q0)
+    b = backend(tree, check=check, general=general)  # the parameters checked once, before the loop
+    q0 = b.normalize(q0)
     if check:
         q0, qd0, us = (_finite(name, x) for name, x in (("q0", q0), ("qd0", qd0), ("controls", us)))
-    interval = interval_map(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps)
+    interval = interval_map(b, solver, dt, substeps, adjoint, rtol, atol, max_steps)
     if checkpoint and adjoint is None and rtol is None and atol is None:
         interval = jax.checkpoint(interval)
 
@@ -209,8 +209,8 @@ def simulate(
         def body(carry, k):
             q, qd = carry
             u = _real_array("the policy's u", policy(k * dt, q, qd))
-            if u.shape != (chain.m,):
-                raise ValueError(f"the policy must return u of shape ({chain.m},), got {u.shape}")
+            if u.shape != (tree.m,):
+                raise ValueError(f"the policy must return u of shape ({tree.m},), got {u.shape}")
             u = u.astype(dtype)
             out = interval(q, qd, u)
             return out, (out, u)
@@ -220,11 +220,11 @@ def simulate(
         if controls is None:
             if steps is None:
                 raise ValueError("controls=None needs steps (the number of intervals, an int >= 1)")
-            us = jnp.zeros((steps, chain.m), dtype)
-        if us.ndim != 2 or us.shape[1] != chain.m:
-            raise ValueError(f"controls must have shape (T, {chain.m}) for this chain, got {us.shape}")
+            us = jnp.zeros((steps, tree.m), dtype)
+        if us.ndim != 2 or us.shape[1] != tree.m:
+            raise ValueError(f"controls must have shape (T, {tree.m}) for this tree, got {us.shape}")
         if us.shape[0] < 1:
-            raise ValueError(f"controls must hold at least one control interval: shape (T >= 1, {chain.m}), got "
+            raise ValueError(f"controls must hold at least one control interval: shape (T >= 1, {tree.m}), got "
                              f"{us.shape}")
         us = us.astype(dtype)
         if steps is not None and steps != us.shape[0]:
@@ -257,7 +257,7 @@ def simulate(
 
 
 def step(
-    chain: Chain,
+    tree: Tree,
     q: Float[ArrayLike, "*batch n"],
     qd: Float[ArrayLike, "*batch n"],
     u: Float[ArrayLike, "*batch m"] | None,
@@ -269,11 +269,12 @@ def step(
     rtol: float | None = None,
     atol: float | None = None,
     max_steps: int = 4096,
+    general: bool = False,
 ) -> tuple[Float[Array, "*batch n"], Float[Array, "*batch n"]]:
     """Advance ``(q, qd)`` by one interval of ``dt`` seconds under the constant control ``u``.
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`.
+        tree: the :class:`lagrange.Tree` (a :class:`~lagrange.chain.Chain` is one).
         q: joint coordinates [rad or m], shape ``(*batch, n)`` (leading batch dimensions for fixed-step solvers
             only); converted as for :func:`simulate`.
         qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.
@@ -285,6 +286,7 @@ def step(
         rtol: as for :func:`simulate`.
         atol: as for :func:`simulate`.
         max_steps: as for :func:`simulate`.
+        general: as for :func:`simulate`.
 
     Returns:
         The new ``(q, qd)``, each of shape ``(*batch, n)``.
@@ -300,6 +302,7 @@ def step(
     _check_max_steps(max_steps)
     q, qd = _real_array("q", q), _real_array("qd", qd)
     u = None if u is None else _real_array("u", u)
-    dtype = _float_dtype(chain, q, qd, u)
+    dtype = _float_dtype(tree, q, qd, u)
     q, qd, u = q.astype(dtype), qd.astype(dtype), None if u is None else u.astype(dtype)
-    return interval_map(chain, solver, dt, substeps, adjoint, rtol, atol, max_steps)(q, qd, u)
+    b = prepare(tree, check=False, general=general, q=q, qd=qd, u=u)
+    return interval_map(b, solver, dt, substeps, adjoint, rtol, atol, max_steps)(q, qd, u)

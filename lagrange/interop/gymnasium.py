@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 from gymnasium import spaces
 
-from lagrange.kinematics import positions
+from lagrange.plotting import chain_outline, chain_reach
 from lagrange.tasks import AbstractTask, TaskState
 
 __all__ = ["GymEnv"]
@@ -82,7 +82,7 @@ class GymEnv(gym.Env):
 
         self._reset_fn = jax.jit(_reset)
         self._step_fn = jax.jit(_step)
-        self._positions = jax.jit(lambda q: positions(task.chain, q))
+        self._positions = jax.jit(lambda q: chain_outline(task.chain, q))
         self._state: TaskState | None = None
         self._t = 0
         self._broken = False
@@ -161,7 +161,7 @@ class GymEnv(gym.Env):
         if self._state is None:
             raise RuntimeError("GymEnv.render called before reset()")
         pts = np.asarray(self._positions(self._state.q), np.float64)
-        reach = float(np.sum(np.asarray(self.task.chain.length))) + 0.2
+        reach = chain_reach(self.task.chain) + 0.2
         w, h = self.frame_size
         dpi = 80
         fig = Figure(figsize=(w / dpi, h / dpi), dpi=dpi)

@@ -1,7 +1,7 @@
 """Checks of a model's parameters: at construction (types, signs, shapes, finite values, a joint that moves nothing,
-which :class:`lagrange.chain.Link` and :class:`lagrange.chain.Chain` run) and after it (:func:`check_parameters`, for
-parameters set by ``eqx.tree_at`` or traced under ``jit``/``grad``, which the dynamics run); and the stacking of
-per-link values into a chain's arrays without any JAX computation.
+which :class:`lagrange.chain.Link`, :class:`lagrange.chain.Chain` and :class:`lagrange.Tree` run) and after it
+(:func:`check_parameters`, for parameters set by ``eqx.tree_at`` or traced under ``jit``/``grad``, which the dynamics
+run).
 """
 
 from __future__ import annotations
@@ -51,9 +51,10 @@ def check_scalar(name: str, value, *, positive: bool = False, nonnegative: bool 
 
 
 def check_array(name: str, value, shape: tuple[int, ...] = (), *, nonnegative: bool = False):
-    """``value`` as a JAX array of the default float type and of ``shape`` (transferred from NumPy when concrete: no
-    JAX computation), checked real, finite and, with ``nonnegative``, ``>= 0``; a traced value is checked for its
-    shape only (:func:`check_parameters`-style checks see it when it is known). Errors name ``name``.
+    """``value`` as an array of JAX's default float type and of ``shape``, checked real, finite and, with
+    ``nonnegative``, ``>= 0``: a NumPy array when concrete (no JAX operation, and a constant even where the model is
+    built inside ``jit``, so that the dynamics fold it), a traced value as it is, checked for its shape only
+    (:func:`check_parameters` checks it when it is known). Errors name ``name``.
 
     Raises:
         TypeError: for ``None``, a bool, a string or anything that is not real numbers.
@@ -76,7 +77,7 @@ def check_array(name: str, value, shape: tuple[int, ...] = (), *, nonnegative: b
         raise ValueError(f"{name} must be finite, got {c.tolist()}")
     if nonnegative and np.any(c < 0):
         raise ValueError(f"{name} must be >= 0, got {c.tolist()}")
-    return jax.device_put(c.astype(jax.dtypes.canonicalize_dtype(float)))
+    return c.astype(jax.dtypes.canonicalize_dtype(float))
 
 
 def check_pair(name: str, value, owner: str = "Link") -> tuple[float, float] | None:
@@ -275,121 +276,49 @@ def check_every_joint_moves_something(links: tuple, parents: tuple[int, ...]) ->
             )
 
 
-# what each parameter array must satisfy: (field, the rule's words, a predicate true where a value breaks it)
-_RULES = (
-    ("mass", ">= 0", lambda x: x < 0),
-    ("length", ">= 0", lambda x: x < 0),
-    ("inertia", ">= 0", lambda x: x < 0),
-    ("damping", ">= 0", lambda x: x < 0),
-    ("armature", ">= 0", lambda x: x < 0),
-    ("stiffness", ">= 0", lambda x: x < 0),
-    ("gear", "> 0", lambda x: ~(x > 0)),
-    ("com", "finite", lambda x: x != x),
-    ("com_normal", "finite", lambda x: x != x),
-    ("springref", "finite", lambda x: x != x),
-    ("attach", "finite", lambda x: x != x),
-    ("gravity", "finite", lambda x: x != x),
-    ("ranges", "finite", lambda x: x != x),
-    ("contact_points", "finite, radii >= 0", lambda x: (x < 0) & (np.arange(x.shape[-1]) == 2)),
-    ("contact.ke", "> 0", lambda x: ~(x > 0)),
-    ("contact.kd", ">= 0", lambda x: x < 0),
-    ("contact.kf", ">= 0", lambda x: x < 0),
-    ("contact.mu", ">= 0", lambda x: x < 0),
-    ("contact.ground", "finite", lambda x: x != x),
-    ("limits.ke", "> 0", lambda x: ~(x > 0)),
-    ("limits.kd", ">= 0", lambda x: x < 0),
-)
+def check_parameters(tree: eqx.Module, *, at_run_time: bool = True) -> eqx.Module:
+    """Check every parameter of a tree against its rule, including those that skipped the constructor.
 
+    The rules: masses, damping, armature and stiffness >= 0, the inertias' diagonals >= 0, gears > 0, the contact
+    and limit laws' parameters as their constructors require (``ke > 0``, ``kd``, ``kf``, ``mu >= 0``), everything
+    finite. The parameters that did not pass through the constructors are those set by ``eqx.tree_at`` or traced
+    under ``jit``/``grad``/``vmap`` (a fit's parameters); every function of :mod:`lagrange.dynamics` calls this.
 
-def check_parameters(chain: eqx.Module, *, at_run_time: bool = True) -> eqx.Module:
-    """Check every parameter of a chain against its rule, including those that skipped the constructor.
-
-    The rules: masses, lengths, inertias, damping, armature and stiffness >= 0, gears > 0, the contact and limit
-    laws' parameters as their constructors require, everything finite. The parameters that did not pass through
-    :class:`lagrange.chain.Chain`'s constructor are those set by ``eqx.tree_at`` or traced under
-    ``jit``/``grad``/``vmap`` (a fit's parameters); every function of :mod:`lagrange.dynamics` calls this.
-
-    A concrete parameter is checked now, in NumPy; a traced one when it is computed, by ``eqx.branched_error_if``
-    tied to the returned chain's leaves (only with ``at_run_time=True``), which names the link. Either way the error
-    names the field, the link and the rule.
+    A concrete parameter is checked now, in NumPy; a traced one when it is computed, by ``eqx.error_if`` tied to the
+    returned tree's leaves (only with ``at_run_time=True``). Either way the error names the leaf
+    (``Chain.bodies[1].mass``, ``Tree.bodies[3].joints[0].damping``) and the rule.
 
     Args:
-        chain: the :class:`lagrange.chain.Chain`.
+        tree: the :class:`lagrange.Tree` (a :class:`lagrange.chain.Chain` is one).
         at_run_time: also check traced parameters at run time (a few comparisons per call).
 
     Returns:
-        The chain (with the run-time checks tied to its traced parameters).
+        The tree (with the run-time checks tied to its traced parameters).
 
     Raises:
         ValueError: (now) for a concrete parameter that breaks its rule.
         equinox.EquinoxRuntimeError: (when run) for a traced one.
     """
-    if hasattr(chain, "bodies"):  # a spatial tree
-        return _check_tree(chain, at_run_time)
-    updates = {}
-    for field, rule, broken in _RULES:
-        x = _get(chain, field)
-        if x is None:
-            continue
-        if not isinstance(x, jax.core.Tracer):
-            v = np.asarray(x, dtype=float)
-            bad = broken(v) | ~np.isfinite(v)
-            if np.any(bad):
-                where = np.argwhere(bad)[0]
-                index = _index_words(chain, field, where)
-                raise ValueError(f"Chain.{field}{index} must be {_words(rule)}, got {float(v[tuple(where)])!r} "
-                                 "(a value set after construction: by eqx.tree_at, or traced)")
-        elif at_run_time:
-            bad = (broken(x) | ~jnp.isfinite(x)).reshape(-1)
-            cells = [_index_words(chain, field, np.unravel_index(k, jnp.shape(x))) for k in range(bad.size)]
-            messages = [f"Chain.{field}{c} must be {_words(rule)} (a value traced or set after construction breaks it)"
-                        for c in cells]
-            updates[field] = eqx.branched_error_if(x, jnp.any(bad), jnp.argmax(bad), messages or [""])
-    for field, value in updates.items():
-        chain = eqx.tree_at(lambda c: _get(c, field), chain, value)
-    return chain
-
-
-def _get(chain, field: str):
-    """``chain.a.b`` for ``field = "a.b"``; ``None`` where a part is ``None``."""
-    x = chain
-    for part in field.split("."):
-        x = None if x is None else getattr(x, part)
-    return x
+    return _check_tree(tree, at_run_time)
 
 
 def _words(rule: str) -> str:
     return rule if rule.startswith("finite") else f"{rule} and finite"
 
 
-def _index_words(chain, field: str, where) -> str:
-    """``[i] (link i)`` for a per-link entry; the link a gear or attach point belongs to; nothing for a scalar."""
-    where = tuple(int(w) for w in np.atleast_1d(where))
-    if not where:
-        return ""
-    if field == "gear":
-        return f"[{where[0]}] (link {chain.actuated[where[0]]})"
-    if field == "attach":
-        return f"[{where[0]}] (link {chain.attached[where[0]]})"
-    if field == "ranges":
-        return f"[{where[0]}] (link {chain.limited[where[0]]})"
-    if field == "contact_points":
-        return f"[{where[0]}] (link {chain.contact_links[where[0]]})"
-    return f"[{where[0]}] (link {where[0]})"
-
-
 _TREE_RULES = {"mass": (">= 0", lambda x: x < 0), "damping": (">= 0", lambda x: x < 0),
                "armature": (">= 0", lambda x: x < 0), "stiffness": (">= 0", lambda x: x < 0),
-               "gear": ("> 0", lambda x: ~(x > 0))}
+               "gear": ("> 0", lambda x: ~(x > 0)), "ke": ("> 0", lambda x: ~(x > 0)), "kd": (">= 0", lambda x: x < 0),
+               "kf": (">= 0", lambda x: x < 0), "mu": (">= 0", lambda x: x < 0),
+               "inertia": ("on its diagonal >= 0", lambda x: (x < 0) & np.eye(3, dtype=bool))}
 
 
 def _check_tree(tree, at_run_time: bool):
-    """:func:`check_parameters` for a :class:`lagrange.model.tree.Tree`: every leaf finite, masses, damping, armature
-    and stiffness >= 0, gears > 0; errors name the leaf's path (``Tree.bodies[3].joints[0].damping``)."""
+    """:func:`check_parameters`: every leaf finite and by its name's rule; errors name the leaf's path."""
     leaves, treedef = jax.tree_util.tree_flatten_with_path(tree)
     out, changed = [], False
     for path, x in leaves:
-        name = "Tree" + jax.tree_util.keystr(path)
+        name = type(tree).__name__ + jax.tree_util.keystr(path)
         rule, broken = _TREE_RULES.get(getattr(path[-1], "name", ""), ("finite", lambda v: v != v))
         if not isinstance(x, jax.core.Tracer):
             v = np.asarray(x, dtype=float)

@@ -51,7 +51,9 @@ def _axis(name: str, axis) -> tuple[float, float, float]:
     norm = float(np.linalg.norm(a))
     if norm < 1e-12:
         raise ValueError(f"{name}.axis must not be zero (a direction: any non-zero length, normalised), got {axis!r}")
-    return tuple(0.0 if abs(x) < 1e-15 else float(x) for x in a / norm)
+    if abs(norm - 1.0) > 4 * np.finfo(float).eps:  # a unit axis's round-off is kept as given
+        a = a / norm
+    return tuple(0.0 if abs(x) < 1e-15 else float(x) for x in a)
 
 
 class AbstractJoint(eqx.Module):
@@ -119,25 +121,27 @@ class _AxisJoint(AbstractJoint):
     nq: ClassVar[int] = 1
     nv: ClassVar[int] = 1
     axis: tuple[float, float, float] = eqx.field(static=True)
-    pos: Float[ArrayLike, "3"]
-    ref: Float[ArrayLike, ""]
     damping: Float[ArrayLike, ""]
     armature: Float[ArrayLike, ""]
     stiffness: Float[ArrayLike, ""]
     springref: Float[ArrayLike, ""]
     range: tuple[float, float] | None = eqx.field(static=True)
+    ref: float = eqx.field(static=True)
+    pos: tuple[float, float, float] = eqx.field(static=True)
 
     def __init__(self, axis=(0.0, 0.0, 1.0), pos=(0.0, 0.0, 0.0), *, ref=0.0, damping=0.0, armature=0.0,
                  stiffness=0.0, springref=None, range=None):
         name = type(self).__name__
         self.range = check_pair("range", range, owner=name)
         self.axis = _axis(name, axis)
-        self.pos = check_array(f"{name}.pos", pos, (3,))
-        self.ref = check_array(f"{name}.ref", ref)
+        self.pos = _static_point(f"{name}.pos", pos)
+        if isinstance(ref, jax.core.Tracer):
+            raise TypeError(f"{name}.ref is static (it sets the coordinate's zero): give a number, not a traced value")
+        self.ref = float(check_array(f"{name}.ref", ref))
         self.damping = check_array(f"{name}.damping", damping, nonnegative=True)
         self.armature = check_array(f"{name}.armature", armature, nonnegative=True)
         self.stiffness = check_array(f"{name}.stiffness", stiffness, nonnegative=True)
-        self.springref = check_array(f"{name}.springref", ref if springref is None else springref)
+        self.springref = check_array(f"{name}.springref", self.ref if springref is None else springref)
 
     def integrate(self, q, v, h):
         return q + h * v
@@ -155,8 +159,8 @@ class Hinge(_AxisJoint):
 
     Args:
         axis: the rotation axis (3 numbers, any non-zero length); static.
-        pos: the anchor [m], shape ``(3,)``.
-        ref: the angle at which the body sits as written [rad] (MuJoCo's ``ref``).
+        pos: the anchor [m], three numbers; static (the joint's place, as its axis).
+        ref: the angle at which the body sits as written [rad] (MuJoCo's ``ref``); static.
         damping, armature, stiffness: see :class:`AbstractJoint`.
         springref: the spring's rest angle [rad] (default ``ref``).
         range: ``(lower, upper)`` [rad], pressed by the tree's ``limits`` law, or ``None``; static.
@@ -182,8 +186,8 @@ class Slide(_AxisJoint):
 
     Args:
         axis: the direction (3 numbers, any non-zero length); static.
-        pos: unused by the motion (kept for MJCF's round trip) [m], shape ``(3,)``.
-        ref: the displacement at which the body sits as written [m].
+        pos: unused by the motion (kept for MJCF's round trip) [m], three numbers; static.
+        ref: the displacement at which the body sits as written [m]; static.
         damping, armature, stiffness: see :class:`AbstractJoint`.
         springref: the spring's rest displacement [m] (default ``ref``).
         range: ``(lower, upper)`` [m], pressed by the tree's ``limits`` law, or ``None``; static.
@@ -207,7 +211,7 @@ class Ball(AbstractJoint):
     velocities are the angular velocity in the body's frame (MuJoCo's ``<joint type="ball">``).
 
     Args:
-        pos: the anchor [m], shape ``(3,)``.
+        pos: the anchor [m], three numbers; static.
         damping, armature, stiffness: see :class:`AbstractJoint`, the same for each of the three velocities.
         springref: the spring's rest quaternion, shape ``(4,)`` (default the identity).
     """
@@ -215,15 +219,15 @@ class Ball(AbstractJoint):
     nq: ClassVar[int] = 4
     nv: ClassVar[int] = 3
     range: ClassVar[None] = None  # no limit on a ball (MJCF's ball-joint ranges are refused by name)
-    pos: Float[ArrayLike, "3"]
     damping: Float[ArrayLike, ""]
     armature: Float[ArrayLike, ""]
     stiffness: Float[ArrayLike, ""]
     springref: Float[ArrayLike, "4"]
+    pos: tuple[float, float, float] = eqx.field(static=True)
 
     def __init__(self, pos=(0.0, 0.0, 0.0), *, damping=0.0, armature=0.0, stiffness=0.0,
                  springref=(1.0, 0.0, 0.0, 0.0)):
-        self.pos = check_array("Ball.pos", pos, (3,))
+        self.pos = _static_point("Ball.pos", pos)
         self.damping = check_array("Ball.damping", damping, nonnegative=True)
         self.armature = check_array("Ball.armature", armature, nonnegative=True)
         self.stiffness = check_array("Ball.stiffness", stiffness, nonnegative=True)
@@ -300,6 +304,14 @@ class Free(AbstractJoint):
 
     def neutral(self):
         return np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
+
+
+def _static_point(name: str, pos) -> tuple[float, float, float]:
+    """A joint's anchor as three Python floats (static), checked finite; a traced value is refused by name."""
+    if isinstance(pos, jax.core.Tracer) or any(isinstance(x, jax.core.Tracer) for x in np.ravel(np.asarray(pos,
+                                                                                                     dtype=object))):
+        raise TypeError(f"{name} is static (the joint's place, as its axis is): give three numbers, not a traced value")
+    return tuple(float(x) for x in np.asarray(check_array(name, pos, (3,)), float))
 
 
 def _stack(values, dtype):

@@ -15,6 +15,7 @@ Frames: the world's z is up by default (``gravity = (0, 0, -9.81)``); a body's f
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 
 import equinox as eqx
@@ -27,6 +28,7 @@ from lagrange.model.checks import check_array, check_points
 from lagrange.model.contact import PenaltyContact
 from lagrange.model.joints import AbstractJoint, Free, Hinge, Slide
 from lagrange.model.limits import PenaltyLimits
+from lagrange.model.plane import normal
 
 __all__ = ["Body", "Motor", "Tree", "WORLD"]
 
@@ -47,9 +49,11 @@ class Body(eqx.Module):
             just before it (the world for the first); static.
         pos: the body frame's origin in the parent's frame as written [m].
         quat: the body frame's orientation in the parent's frame as written, a quaternion ``(w, x, y, z)``
-            (normalised here).
+            (normalised here); static, as the joints' axes are.
         contacts: ground contact points ``(x, y, z, radius)`` in the body's frame [m] (a capsule's two end points,
             a sphere's centre, a box's corners with radius 0); static. The tree's ``contact`` law presses them.
+        tip: the body's far end in its frame [m], or ``None``: where a drawing of the body ends (a planar link's
+            ``length`` along its direction, :func:`lagrange.kinematics.tip_positions`); no force acts there.
         name: a name for messages; static.
     """
 
@@ -57,8 +61,9 @@ class Body(eqx.Module):
     inertia: Float[Array, "3 3"]
     com: Float[Array, "3"]
     pos: Float[Array, "3"]
-    quat: Float[Array, "4"]
     joints: tuple[AbstractJoint, ...]
+    tip: Float[Array, "3"] | None
+    quat: tuple[float, float, float, float] = eqx.field(static=True)
     parent: int | None = eqx.field(static=True)
     contacts: tuple[tuple[float, float, float, float], ...] = eqx.field(static=True)
     name: str | None = eqx.field(static=True)
@@ -66,7 +71,8 @@ class Body(eqx.Module):
     def __init__(self, mass: Float[ArrayLike, ""], inertia: Float[ArrayLike, "3"] | Float[ArrayLike, "3 3"] = (0, 0, 0),
                  com: Float[ArrayLike, "3"] = (0.0, 0.0, 0.0), *, joints: Sequence[AbstractJoint] = (),
                  parent: int | None = None, pos: Float[ArrayLike, "3"] = (0.0, 0.0, 0.0),
-                 quat: Float[ArrayLike, "4"] = (1.0, 0.0, 0.0, 0.0), contacts=(), name: str | None = None):
+                 quat: Float[ArrayLike, "4"] = (1.0, 0.0, 0.0, 0.0), contacts=(),
+                 tip: Float[ArrayLike, "3"] | None = None, name: str | None = None):
         who = f"Body {name!r}" if name else "Body"
         self.mass = check_array(f"{who}.mass", mass, nonnegative=True)
         if np.shape(inertia) == (3,):  # principal moments along the body's axes
@@ -81,13 +87,17 @@ class Body(eqx.Module):
                                  f"{np.linalg.eigvalsh(J).tolist()}")
         self.com = check_array(f"{who}.com", com, (3,))
         self.pos = check_array(f"{who}.pos", pos, (3,))
-        quat = check_array(f"{who}.quat", quat, (4,))
-        if not _traced(quat):
-            norm = float(np.linalg.norm(np.asarray(quat)))
-            if norm < 1e-12:
-                raise ValueError(f"{who}.quat must be a non-zero quaternion (w, x, y, z), got {np.asarray(quat)}")
-            quat = check_array(f"{who}.quat", np.asarray(quat) / norm, (4,))
-        self.quat = quat
+        if _traced(quat):
+            raise TypeError(f"{who}.quat is static (a body's orientation is structure, as a joint's axis is): give "
+                            "four numbers, not a traced value")
+        quat = np.asarray(check_array(f"{who}.quat", quat, (4,)), float)  # NumPy: static
+        norm = float(np.linalg.norm(quat))
+        if norm < 1e-12:
+            raise ValueError(f"{who}.quat must be a non-zero quaternion (w, x, y, z), got {quat.tolist()}")
+        if abs(norm - 1.0) > 4 * np.finfo(float).eps:  # a unit quaternion's round-off is kept as given
+            quat = quat / norm
+        self.quat = tuple(float(x) for x in quat)
+        self.tip = None if tip is None else check_array(f"{who}.tip", tip, (3,))
         joints = tuple(joints) if not isinstance(joints, AbstractJoint) else (joints,)
         for k, j in enumerate(joints):
             if not isinstance(j, AbstractJoint):
@@ -255,8 +265,18 @@ class Tree(eqx.Module):
 
     @property
     def n(self) -> int:
-        """Number of velocities (as :attr:`lagrange.chain.Chain.n`, the size of ``M``)."""
+        """Deprecated: :attr:`nv` (a chain's number of links, when chains were a model of their own)."""
+        warnings.warn("Tree.n is deprecated: use Tree.nv (velocities, the size of M) or Tree.nq (coordinates)",
+                      DeprecationWarning, stacklevel=2)
         return self.nv
+
+    @property
+    def planar(self) -> bool:
+        """Whether the tree moves in one plane (:func:`lagrange.model.plane.normal`): every joint a hinge or a slide,
+        the hinges about one common axis, the slides across it; static. The dynamics of a planar tree are derived by
+        the planar backend (:mod:`lagrange.planar`), the others' by the general rigid-body algorithms
+        (:mod:`lagrange.rbda`)."""
+        return normal(self) is not None
 
     @property
     def mass(self) -> Float[Array, " bodies"]:

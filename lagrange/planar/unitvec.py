@@ -23,7 +23,7 @@ import math
 
 from lagrange.math import scalar as s
 from lagrange.math.scalar import cos_sin
-from lagrange.chain import WORLD, Chain
+from lagrange.planar.model import WORLD, PlanarChain
 
 BASE = -1
 
@@ -44,7 +44,7 @@ SYMBOL = _Symbol()
 class _StructureOnly:
     """A chain's static structure with every parameter replaced by :data:`SYMBOL`."""
 
-    def __init__(self, chain: Chain):
+    def __init__(self, chain: PlanarChain):
         self.joints, self.axes, self.n = chain.joints, chain.axes, chain.n
         self.parents, self.attached, self.senses = chain.parents, chain.attached, chain.senses
         self.frame_offsets = chain.frame_offsets
@@ -64,7 +64,7 @@ class Geometry:
     (``cos(a - b) = cos a cos b + sin a sin b``) instead of two more transcendentals.
     """
 
-    def __init__(self, chain: Chain, q, qd, absolute=frozenset()):
+    def __init__(self, chain: PlanarChain, q, qd, absolute=frozenset()):
 
         import jax.numpy as jnp
 
@@ -280,7 +280,7 @@ def _force(v):
     return v
 
 
-def plan(chain: Chain, *, mass: bool, velocity: bool, gravity: bool) -> frozenset:
+def plan(chain: PlanarChain, *, mass: bool, velocity: bool, gravity: bool) -> frozenset:
     """The ("sin"|"cos", angle) values the requested terms need anyway, by a dry run on structure."""
     proxy = _StructureOnly(chain)
     geom = Geometry(proxy, SYMBOL, SYMBOL if velocity else None)
@@ -295,7 +295,7 @@ def _acc(d: dict, key, value):
     d[key] = s.add(d.get(key, 0.0), value)
 
 
-def mass_entries(chain: Chain, geom: Geometry) -> list[list]:
+def mass_entries(chain: PlanarChain, geom: Geometry) -> list[list]:
     """Lower triangle of the translational part of M, ``sum_i m_i J_i^T J_i``."""
     n = chain.n
     M = [[0.0] * n for _ in range(n)]
@@ -310,7 +310,7 @@ def mass_entries(chain: Chain, geom: Geometry) -> list[list]:
     return M
 
 
-def generalized_forces(chain: Chain, geom: Geometry, *, velocity: bool, gravity: bool) -> list:
+def generalized_forces(chain: PlanarChain, geom: Geometry, *, velocity: bool, gravity: bool) -> list:
     """sum_i m_i J_i^T (a_i + g e_z): velocity-product and gravity generalized forces."""
     n = chain.n
     out = [0.0] * n

@@ -19,11 +19,11 @@ from lagrange.math import scalar as s
 from lagrange.planar import unitvec as _unitvec
 from lagrange.math.linalg import solve_spd, to_array
 from lagrange.forces import clamp_controls
-from lagrange.chain import WORLD, Chain
-from lagrange.kinematics import frames
+from lagrange.planar.model import WORLD, PlanarChain
+from lagrange.planar.frames import frames
 
 
-def _add_rotational(chain: Chain, M: list[list]) -> list[list]:
+def _add_rotational(chain: PlanarChain, M: list[list]) -> list[list]:
     """Add ``sum_i I_i s_i^T s_i + diag(armature)`` (s_i: the revolute joints on link i's path) to M."""
     revolute: list[tuple[int, ...]] = []
     for i, joint in enumerate(chain.joints):
@@ -40,7 +40,7 @@ def _add_rotational(chain: Chain, M: list[list]) -> list[list]:
     return M
 
 
-def _terms(chain: Chain, q, qd, *, mass: bool, velocity: bool, gravity: bool):
+def _terms(chain: PlanarChain, q, qd, *, mass: bool, velocity: bool, gravity: bool):
     """(lower triangle of M or None, generalized velocity-product + gravity forces or None), by the relative-angle
     formulation of :mod:`lagrange.planar.unitvec`."""
     absolute = _unitvec.plan(chain, mass=mass, velocity=velocity, gravity=gravity)
@@ -64,14 +64,14 @@ def _terms(chain: Chain, q, qd, *, mass: bool, velocity: bool, gravity: bool):
     return M, f
 
 
-def _spots(chain: Chain, q, qd):
+def _spots(chain: PlanarChain, q, qd):
     """Per contact point: its link, radius, and the jets (x, z) of the point (:func:`lagrange.kinematics.frames`)."""
     points = [(i, p[0], p[1]) for i, p in zip(chain.contact_links, chain.contact_points)]
     f = frames(chain, q, qd, points=points)
     return f, [(i, p[2], xz) for i, p, xz in zip(chain.contact_links, chain.contact_points, f.points)]
 
 
-def _contact_forces(chain: Chain, q, qd) -> list:
+def _contact_forces(chain: PlanarChain, q, qd) -> list:
     """``J_s^T (ft, fn)`` summed over the contact points, per joint (scalars): the force at each point's lowest spot
     ``s = p - r e_z``, whose material velocity is the point's plus ``w perp(s - p) = (w r, 0)``."""
     f, spots = _spots(chain, q, qd)
@@ -92,7 +92,7 @@ def _stack(xs, like):
     return jnp.stack([s.as_array(x, like) for x in xs], axis=-1)
 
 
-def mass_matrix(chain: Chain, q):
+def mass_matrix(chain: PlanarChain, q):
     """The mass matrix ``M(q)``, written out entry by entry.
 
     Arguments and result as :func:`lagrange.dynamics.mass_matrix`'s, for a chain that function has prepared (its
@@ -102,7 +102,7 @@ def mass_matrix(chain: Chain, q):
     return to_array(M, q[..., 0], symmetric=True)
 
 
-def bias_forces(chain: Chain, q, qd):
+def bias_forces(chain: PlanarChain, q, qd):
     """The bias forces, written out joint by joint.
 
     Arguments and result as :func:`lagrange.dynamics.bias_forces`'s, for a chain that function has prepared (its
@@ -112,7 +112,7 @@ def bias_forces(chain: Chain, q, qd):
     return _stack(f, q[..., 0])
 
 
-def gravity_forces(chain: Chain, q):
+def gravity_forces(chain: PlanarChain, q):
     """The generalized gravity forces, written out joint by joint.
 
     Arguments and result as :func:`lagrange.dynamics.gravity_forces`'s, for a chain that function has prepared (its
@@ -122,7 +122,7 @@ def gravity_forces(chain: Chain, q):
     return _stack(f, q[..., 0])
 
 
-def _actuation(chain: Chain, u) -> list:
+def _actuation(chain: PlanarChain, u) -> list:
     """``B u`` as a list of scalars (a constant 0 on every unactuated joint)."""
     out = [0.0] * chain.n
     if chain.m:
@@ -132,7 +132,7 @@ def _actuation(chain: Chain, u) -> list:
     return out
 
 
-def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, pivots: bool = False):
+def forward_dynamics(chain: PlanarChain, q, qd, u=None, implicit_damping_dt=None, *, pivots: bool = False):
     """Joint accelerations ``qdd = M^-1 (B u - bias)``, ``M qdd = rhs`` solved unrolled over scalars.
 
     Arguments and result as :func:`lagrange.dynamics.forward_dynamics`'s, for a chain that function has prepared
@@ -155,7 +155,7 @@ def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, p
     return _stack(qdd, like), jnp.any(~((p > 0) & jnp.isfinite(p)), axis=-1)
 
 
-def energy(chain: Chain, q, qd):
+def energy(chain: PlanarChain, q, qd):
     """The kinetic and potential energy, from the jets of :func:`lagrange.kinematics.frames`.
 
     Arguments and result as :func:`lagrange.dynamics.energy`'s, for a chain that function has prepared (its

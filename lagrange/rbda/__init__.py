@@ -25,9 +25,9 @@ from lagrange.rbda.kinematics import Kinematics
 from lagrange.rbda.rnea import rnea
 from lagrange.model.tree import WORLD, Tree
 
-__all__ = ["bias_forces", "com_positions", "dexpinv", "energy", "forward_dynamics", "gravity_forces",
-           "integrate_positions", "inverse_dynamics", "mass_matrix", "normalize_quaternions", "positions",
-           "position_derivative"]
+__all__ = ["bias_forces", "com_positions", "contact_point_positions", "dexpinv", "energy", "forward_dynamics",
+           "gravity_forces", "integrate_positions", "inverse_dynamics", "mass_matrix", "normalize_quaternions",
+           "positions", "position_derivative", "tip_positions"]
 
 
 def _broadcast(q, *xs):
@@ -152,6 +152,13 @@ def com_positions(tree: Tree, q):
     R, p = _body_frames(tree, q)
     com = jnp.stack([jnp.asarray(b.com, p.dtype) for b in tree.bodies])
     return p + al.matvec(R, com)
+
+
+def tip_positions(tree: Tree, q):
+    """Every body's ``tip`` in the world [m] (its origin where it has none), shape ``(*batch, bodies, 3)``."""
+    R, p = _body_frames(tree, q)
+    tips = jnp.stack([jnp.zeros(3, p.dtype) if b.tip is None else jnp.asarray(b.tip, p.dtype) for b in tree.bodies])
+    return p + al.matvec(R, tips)
 
 
 def contact_point_positions(tree: Tree, q):

@@ -21,13 +21,13 @@ import numpy as np
 from equinox import AbstractClassVar, AbstractVar
 from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
-from lagrange.chain import Chain
 from lagrange.integrate import step as _step
+from lagrange.model.joints import Hinge, Slide
 from lagrange.integrate.solvers import MomentumEuler, SemiImplicitEuler, check_solver
 from lagrange.model.tree import Tree
 
 __all__ = ["TaskState", "AbstractTask", "TaskSolver", "control_step", "wrap",
-           "check_schedule", "check_joints", "check_number", "check_state", "check_chain"]
+           "check_schedule", "check_joints", "check_number", "check_state", "check_chain", "joint_kinds"]
 
 TaskSolver = diffrax.AbstractSolver | SemiImplicitEuler | MomentumEuler
 """The solvers a task steps with (:mod:`lagrange.integrate.solvers`; any explicit diffrax Runge-Kutta solver)."""
@@ -65,7 +65,7 @@ class AbstractTask(eqx.Module):
     (``step``) are the same for every task.
 
     Attributes:
-        chain (Chain | Tree): the robot.
+        chain (Tree): the robot (a :class:`lagrange.chain.Chain` is one).
         dt (float): the control interval [s].
         horizon (int): control steps per episode.
         substeps (int): steps of ``solver`` per control interval.
@@ -73,7 +73,7 @@ class AbstractTask(eqx.Module):
         solver). name (ClassVar[str]): a display name for titles and results, never switched on.
     """
 
-    chain: AbstractVar[Chain | Tree]
+    chain: AbstractVar[Tree]
     dt: AbstractVar[float]
     horizon: AbstractVar[int]
     substeps: AbstractVar[int]
@@ -202,10 +202,9 @@ def check_state(task: AbstractTask, state: TaskState, method: str | None = None)
 
     Raises:
         TypeError: for something else than a ``TaskState``.
-        ValueError: for ``q`` or ``qd`` of another shape than ``(n,)``.
+        ValueError: for ``q`` or ``qd`` of another shape than ``(nq,)`` and ``(nv,)``.
     """
-    where, nv = type(task).__name__ + (f".{method}" if method else ""), task.chain.n
-    nq = task.chain.nq if isinstance(task.chain, Tree) else nv
+    where, nq, nv = type(task).__name__ + (f".{method}" if method else ""), task.chain.nq, task.chain.nv
     if not isinstance(state, TaskState):
         raise TypeError(f"{where}: state must be a lagrange.tasks.TaskState(q, qd), got {type(state).__name__}")
     if jnp.shape(state.q) != (nq,) or jnp.shape(state.qd) != (nv,):
@@ -217,34 +216,37 @@ def check_state(task: AbstractTask, state: TaskState, method: str | None = None)
                          f"{jnp.shape(state.action)}")
 
 
-def check_chain(task: AbstractTask, kind: type = Chain) -> None:
-    """Check that a task's ``chain`` is a :class:`lagrange.Chain` (or ``kind``: :class:`lagrange.Tree` for the 3-D
-    tasks).
+def check_chain(task: AbstractTask, planar: bool = True) -> None:
+    """Check that a task's ``chain`` is a :class:`lagrange.Tree` (a :class:`lagrange.chain.Chain` is one) and, with
+    ``planar``, a planar one (:attr:`lagrange.Tree.planar`: the pole and planar locomotion tasks read its angles).
 
     Args:
         task: the task.
-        kind: the class the chain must be.
+        planar: whether the tree must move in a plane.
 
     Raises:
         TypeError: naming the field and what it got.
     """
-    if not isinstance(task.chain, kind):
-        raise TypeError(f"{type(task).__name__}.chain must be a lagrange.{kind.__name__}, got "
+    if not isinstance(task.chain, Tree):
+        raise TypeError(f"{type(task).__name__}.chain must be a lagrange.Tree (a lagrange.chain.Chain is one), got "
                         f"{type(task.chain).__name__}")
+    if planar and not task.chain.planar:
+        raise TypeError(f"{type(task).__name__}.chain must be a planar tree (hinges about one axis, slides across "
+                        "it: a lagrange.chain.Chain), got one that is not")
 
 
-def check_schedule(task: AbstractTask, kind: type = Chain) -> None:
+def check_schedule(task: AbstractTask, planar: bool = True) -> None:
     """Check a task's ``chain``, ``dt``, ``horizon`` and ``substeps`` (for a task's ``__check_init__``).
 
     Args:
         task: the task.
-        kind: the class its chain must be (:func:`check_chain`).
+        planar: whether its chain must be planar (:func:`check_chain`).
 
     Raises:
         ValueError: naming the field that is out of range (``horizon``, ``substeps``: integers >= 1; ``dt`` > 0).
     """
     cls = type(task).__name__
-    check_chain(task, kind)
+    check_chain(task, planar)
     for field in ("horizon", "substeps"):
         v = getattr(task, field)
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
@@ -277,19 +279,30 @@ def check_number(task: AbstractTask, field: str, low: float, high: float = math.
         raise ValueError(f"{type(task).__name__}.{field} must be a number in {ends}, got {v!r}")
 
 
+JOINT_NAMES = {Hinge: "revolute", Slide: "prismatic"}
+"""A planar chain's words for its joints' kinds."""
+
+
+def joint_kinds(tree: Tree) -> tuple[str, ...]:
+    """Each joint's kind as a planar chain names it: ``"revolute"`` (a hinge), ``"prismatic"`` (a slide), else the
+    joint's class name."""
+    return tuple(JOINT_NAMES.get(type(j), type(j).__name__) for j in tree.joints)
+
+
 def check_joints(task: AbstractTask, joints: tuple[str, ...]) -> None:
-    """Check that a task's chain has the joint kinds ``joints`` and a motor (for a task's ``__check_init__``).
+    """Check that a task's chain is planar with the joint kinds ``joints`` and a motor (for a task's
+    ``__check_init__``).
 
     Args:
         task: the task.
-        joints: the joint kinds its chain must have, in order (``("prismatic", "revolute")``).
+        joints: the joint kinds its chain must have, in order (``("prismatic", "revolute")``: a slide, a hinge).
 
     Raises:
         ValueError: naming ``chain`` and the joints it must have, or that it has no actuated joint.
     """
     cls = type(task).__name__
     check_chain(task)
-    if tuple(task.chain.joints) != joints:
-        raise ValueError(f"{cls}.chain must have the joints {joints}, got {task.chain.joints}")
+    if joint_kinds(task.chain) != joints:
+        raise ValueError(f"{cls}.chain must have the joints {joints}, got {joint_kinds(task.chain)}")
     if task.chain.m < 1:
         raise ValueError(f"{cls}.chain must be actuated (some link with a gear), got chain.m=0")

@@ -30,7 +30,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float, PRNGKeyArray
 
 from lagrange import systems
-from lagrange.chain import Chain
+from lagrange.model.tree import Tree
 from lagrange.integrate.solvers import RK4
 from lagrange.tasks.base import (TaskSolver, TaskState, check_joints, check_number, check_schedule,
                                  check_state, wrap)
@@ -56,7 +56,7 @@ class DiffRLCartpole(AbstractPoleTask):
     =====================  ======================================================================================
 
     Attributes:
-        chain (Chain): a cart-pole chain (:func:`lagrange.systems.cartpole`); the other fields are keyword-only, their
+        chain (Tree): a cart-pole chain (:func:`lagrange.systems.cartpole`); the other fields are keyword-only, their
             defaults the authors'.
         dt (float): the control interval [s], > 0 (1/60).
         horizon (int): control steps per episode, >= 1 (240).
@@ -66,7 +66,7 @@ class DiffRLCartpole(AbstractPoleTask):
         noise_qd (float): its half-width on ``dx`` [m/s] and ``dq`` [rad/s], >= 0 (0.25).
     """
 
-    chain: Chain
+    chain: Tree
     dt: float = eqx.field(static=True, default=1.0 / 60.0, kw_only=True)
     horizon: int = eqx.field(static=True, default=240, kw_only=True)
     substeps: int = eqx.field(static=True, default=1, kw_only=True)

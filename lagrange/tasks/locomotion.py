@@ -43,6 +43,7 @@ from equinox import AbstractClassVar, AbstractVar
 from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
 from lagrange.chain import Chain, Link
+from lagrange.model.tree import Tree
 from lagrange.model.contact import PenaltyContact
 from lagrange.model.limits import PenaltyLimits
 from lagrange.integrate.solvers import SemiImplicitEuler
@@ -154,7 +155,7 @@ class AbstractLocomotion(AbstractTask):
     torso's pitch) rewarded for running forward; DFlex's observation ``(q[1:], qd)``.
 
     Attributes:
-        chain (Chain): the robot.
+        chain (Tree): the robot.
         dt (float): the control interval [s] (DFlex: 1/60).
         horizon (int): control steps per episode (DFlex: 1000).
         substeps (int): solver steps per control interval (DFlex: 16).
@@ -165,7 +166,7 @@ class AbstractLocomotion(AbstractTask):
         action_cost (float): the reward's ``-action_cost |a|^2`` (DFlex: 0.1).
     """
 
-    chain: AbstractVar[Chain]
+    chain: AbstractVar[Tree]
     start: AbstractVar[tuple[float, ...]]
     noise_q: AbstractVar[float]
     noise_qd: AbstractVar[float]
@@ -175,14 +176,14 @@ class AbstractLocomotion(AbstractTask):
     def _check(self) -> None:
         check_schedule(self)
         cls = type(self).__name__
-        if len(self.start) != self.chain.n:
-            raise ValueError(f"{cls}.start must have one entry per coordinate ({self.chain.n}), got {self.start!r}")
+        if len(self.start) != self.chain.nv:
+            raise ValueError(f"{cls}.start must have one entry per coordinate ({self.chain.nv}), got {self.start!r}")
         for field in ("noise_q", "noise_qd", "action_cost"):
             check_number(self, field, 0.0)
 
     @property
     def observation_size(self) -> int:
-        return 2 * self.chain.n - 1
+        return 2 * self.chain.nv - 1
 
     def reset(self, key: PRNGKeyArray) -> TaskState:
         """The start pose plus ``U(-noise_q, noise_q)`` on every coordinate, velocities ``U(-noise_qd, noise_qd)``.
@@ -192,7 +193,7 @@ class AbstractLocomotion(AbstractTask):
         """
         dtype = jnp.result_type(self.chain.mass)
         kq, kv = jax.random.split(key)
-        n = self.chain.n
+        n = self.chain.nv
         q = jnp.asarray(self.start, dtype) + jax.random.uniform(kq, (n,), dtype, -self.noise_q, self.noise_q)
         qd = jax.random.uniform(kv, (n,), dtype, -self.noise_qd, self.noise_qd)
         return TaskState(q, qd)
@@ -243,7 +244,7 @@ class Hopper(AbstractLocomotion):
         termination_height (float): the early end's height [m] (DFlex: -0.45).
     """
 
-    chain: Chain
+    chain: Tree
     dt: float = eqx.field(static=True, default=1.0 / 60.0, kw_only=True)
     horizon: int = eqx.field(static=True, default=1000, kw_only=True)
     substeps: int = eqx.field(static=True, default=16, kw_only=True)
@@ -308,7 +309,7 @@ class Cheetah(AbstractLocomotion):
     =====================  =============================================================================================
     """
 
-    chain: Chain
+    chain: Tree
     dt: float = eqx.field(static=True, default=1.0 / 60.0, kw_only=True)
     horizon: int = eqx.field(static=True, default=1000, kw_only=True)
     substeps: int = eqx.field(static=True, default=16, kw_only=True)

@@ -106,7 +106,7 @@ class AbstractLocomotion3D(AbstractTask):
     ends_early: ClassVar[bool] = True
 
     def _check(self) -> None:
-        check_schedule(self, Tree)
+        check_schedule(self, planar=False)
         cls = type(self).__name__
         if not isinstance(self.chain.joints[0], Free):
             raise TypeError(f"{cls}.chain's first joint must be a lagrange.Free, got "

@@ -37,7 +37,7 @@ class AbstractPoleTask(AbstractTask):
     @property
     def n_links(self) -> int:
         """Number of poles (revolute links)."""
-        return self.chain.n - self.first_pole
+        return self.chain.nv - self.first_pole
 
     def angles(self, state: TaskState) -> Float[Array, " n_links"]:
         """Pole angles [rad], wrapped, 0 = first pole upright / later links straight, shape ``(n_links,)``.
@@ -107,7 +107,7 @@ def balanced(task: AbstractPoleTask, q: Float[ArrayLike, "*batch T n"], *, fract
     """
     q = jnp.asarray(q)
     if q.ndim < 2:
-        raise ValueError(f"balanced: q must have shape (..., T, n = {task.chain.n}), a trajectory, got {q.shape}")
+        raise ValueError(f"balanced: q must have shape (..., T, n = {task.chain.nv}), a trajectory, got {q.shape}")
     for name, value, ok in (("fraction", fraction, lambda v: 0 < v <= 1), ("tolerance", tolerance, lambda v: v > 0)):
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or not ok(value):
             raise ValueError(f"balanced: {name} must be a number in {'(0, 1]' if name == 'fraction' else '(0, inf)'}"
@@ -136,8 +136,8 @@ def leaves_upright(task: AbstractPoleTask, q: Float[ArrayLike, "*batch T n"], *,
         ValueError: for a ``q``, ``tolerance`` or ``from_step`` out of range.
     """
     q = jnp.asarray(q)
-    if q.ndim < 2 or q.shape[-1] != task.chain.n:
-        raise ValueError(f"leaves_upright: q must have shape (..., T, n = {task.chain.n}), got {q.shape}")
+    if q.ndim < 2 or q.shape[-1] != task.chain.nv:
+        raise ValueError(f"leaves_upright: q must have shape (..., T, n = {task.chain.nv}), got {q.shape}")
     if not tolerance > 0:
         raise ValueError(f"leaves_upright: tolerance must be > 0 (rad), got {tolerance!r}")
     if not (isinstance(from_step, (int, np.integer)) and 0 <= from_step < q.shape[-2]):
@@ -158,6 +158,6 @@ def upright_error(task: AbstractPoleTask, q: Float[ArrayLike, "*batch n"]) -> Fl
         Shape ``(*batch,)``.
     """
     q = jnp.asarray(q)
-    if q.ndim < 1 or q.shape[-1] != task.chain.n:
-        raise ValueError(f"upright_error: q must have shape (..., n = {task.chain.n}), got {q.shape}")
+    if q.ndim < 1 or q.shape[-1] != task.chain.nv:
+        raise ValueError(f"upright_error: q must have shape (..., n = {task.chain.nv}), got {q.shape}")
     return jnp.max(jnp.abs(pole_orientations(task, q)), axis=-1)

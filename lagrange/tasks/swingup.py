@@ -49,10 +49,10 @@ from equinox import AbstractClassVar, AbstractVar
 from jaxtyping import Array, ArrayLike, Float, PRNGKeyArray
 
 from lagrange import systems
-from lagrange.chain import Chain
+from lagrange.model.tree import Tree
 from lagrange.integrate.solvers import RK4
 from lagrange.tasks.base import (TaskSolver, TaskState, check_chain, check_joints, check_number,
-                                 check_schedule)
+                                 check_schedule, joint_kinds)
 from lagrange.tasks.poles import AbstractPoleTask
 
 __all__ = ["AbstractSwingup", "AbstractPaperSwingup", "Acrobot", "Cartpole", "DoubleCartpole", "ChainSwingup",
@@ -68,7 +68,7 @@ class AbstractSwingup(AbstractPoleTask):
     keyword-only; the defaults are the paper's).
 
     Attributes:
-        chain (Chain): the chain.
+        chain (Tree): the chain.
         dt (float): the control interval [s], > 0 (each final class has its default).
         horizon (int): control steps per episode, >= 1 (paper: 500).
         substeps (int): steps of ``solver`` per interval, >= 1 (1; see the module's table).
@@ -85,7 +85,7 @@ class AbstractSwingup(AbstractPoleTask):
             :data:`BODY_SETS`), None for one built on another chain. Only recorded, never switched on.
     """
 
-    chain: Chain
+    chain: Tree
     dt: AbstractVar[float]
     horizon: int = eqx.field(static=True, default=500, kw_only=True)
     substeps: int = eqx.field(static=True, default=1, kw_only=True)
@@ -107,7 +107,7 @@ class AbstractSwingup(AbstractPoleTask):
         if self.bodies is not None and self.bodies not in BODY_SETS:
             raise ValueError(f"{cls}.bodies must be None or one of {list(BODY_SETS)}, got {self.bodies!r}")
         if self.starts is not None and not isinstance(self.starts, jax.core.Tracer):
-            shape, want = np.shape(self.starts), 2 * self.chain.n
+            shape, want = np.shape(self.starts), 2 * self.chain.nv
             if len(shape) != 2 or shape[0] < 1 or shape[1] != want:
                 raise ValueError(f"{cls}.starts must be an array of shape (K >= 1, 2 n = {want}) of states (q, qd), "
                                  f"got shape {shape}")
@@ -122,7 +122,7 @@ class AbstractSwingup(AbstractPoleTask):
         Args:
             key: the PRNG key of the start.
         """
-        n = self.chain.n
+        n = self.chain.nv
         dtype = jnp.result_type(self.chain.mass)
         kq, kv = jax.random.split(key)
         q = jax.random.uniform(kq, (n,), dtype, -self.noise, self.noise)
@@ -143,7 +143,7 @@ class AbstractSwingup(AbstractPoleTask):
 
     @property
     def observation_size(self) -> int:
-        return 3 * self.n_links + (2 if self.cart else 0) if self.trig else 2 * self.chain.n
+        return 3 * self.n_links + (2 if self.cart else 0) if self.trig else 2 * self.chain.nv
 
     def observe(self, state: TaskState) -> Float[Array, " observation_size"]:
         """``(x, th, dx, dth)``, or ``(x, sin th, cos th, dx, dth)`` with ``trig`` (``x, dx`` only with a cart; each
@@ -168,7 +168,7 @@ class AbstractPaperSwingup(AbstractSwingup):
             the Brax v1 bodies are ``lagrange.systems.BRAX_V1[name]``.
     """
 
-    system: AbstractClassVar[Callable[..., Chain]]
+    system: AbstractClassVar[Callable[..., Tree]]
 
     @classmethod
     def rods(cls, **options) -> Self:
@@ -226,7 +226,7 @@ class Acrobot(AbstractPaperSwingup):
 
     first_pole: ClassVar[int] = 0
     name: ClassVar[str] = "acrobot"
-    system: ClassVar[Callable[..., Chain]] = staticmethod(systems.acrobot)
+    system: ClassVar[Callable[..., Tree]] = staticmethod(systems.acrobot)
 
     def __check_init__(self):
         check_joints(self, ("revolute", "revolute"))
@@ -264,7 +264,7 @@ class Cartpole(AbstractPaperSwingup):
 
     first_pole: ClassVar[int] = 1
     name: ClassVar[str] = "cartpole"
-    system: ClassVar[Callable[..., Chain]] = staticmethod(systems.cartpole)
+    system: ClassVar[Callable[..., Tree]] = staticmethod(systems.cartpole)
 
     def __check_init__(self):
         check_joints(self, ("prismatic", "revolute"))
@@ -303,7 +303,7 @@ class DoubleCartpole(AbstractPaperSwingup):
     trig: ClassVar[bool] = True
     first_pole: ClassVar[int] = 1
     name: ClassVar[str] = "double_cartpole"
-    system: ClassVar[Callable[..., Chain]] = staticmethod(systems.double_cartpole)
+    system: ClassVar[Callable[..., Tree]] = staticmethod(systems.double_cartpole)
 
     def __check_init__(self):
         check_joints(self, ("prismatic", "revolute", "revolute"))
@@ -345,8 +345,8 @@ class ChainSwingup(AbstractSwingup):
 
     def __check_init__(self):
         check_chain(self)
-        if any(j != "revolute" for j in self.chain.joints):
-            raise ValueError(f"ChainSwingup needs revolute joints only, got joints={self.chain.joints}")
+        if any(j != "revolute" for j in joint_kinds(self.chain)):
+            raise ValueError(f"ChainSwingup needs revolute joints only, got joints={joint_kinds(self.chain)}")
         if self.chain.m < 1:
             raise ValueError("ChainSwingup needs an actuated chain (some link with a gear), got chain.m=0")
 

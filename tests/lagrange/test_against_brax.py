@@ -59,6 +59,7 @@ import pytest
 import lagrange as lg
 from lagrange.chain import Chain, Link
 from lagrange.interop.mjcf import to_mjcf
+from lagrange.planar.lower import lower as planar
 from tests.helpers import (
     SYSTEMS,
     TRAJECTORY,
@@ -137,7 +138,7 @@ def derivatives(trajectory):
 def mujoco_finite_differences(chain: Chain, dt: float, q0, qd0, us, h=FD_STEP):
     """Central differences of (final q, final qd, loss) through MuJoCo C, same layout as ``derivatives``."""
     model, data = mujoco_model(chain, dt)
-    n, (T, m) = chain.n, us.shape
+    n, (T, m) = chain.nv, us.shape
     cols = 2 * n + T * m
     x = np.concatenate([q0, qd0, us.ravel()])
     X = np.repeat(x[None], 2 * cols, axis=0)
@@ -173,8 +174,8 @@ def test_export_loads_in_brax_in_float64():
     assert sys.matrix_inv_iterations == 0
     assert sys.opt.timestep.dtype == jnp.float64 and sys.link.inertia.mass.dtype == jnp.float64
     np.testing.assert_array_equal(sys.link.inertia.mass, np.asarray(chain.mass))
-    np.testing.assert_array_equal(sys.dof.damping, np.asarray(chain.damping))
-    np.testing.assert_array_equal(sys.dof.armature, np.asarray(chain.armature))
+    np.testing.assert_array_equal(sys.dof.damping, np.asarray(planar(chain).damping))
+    np.testing.assert_array_equal(sys.dof.armature, np.asarray(planar(chain).armature))
     np.testing.assert_array_equal(sys.actuator.gear, np.asarray(chain.gear))
     np.testing.assert_array_equal(sys.actuator.qd_id, chain.actuated)
 

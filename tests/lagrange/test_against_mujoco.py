@@ -34,6 +34,7 @@ import numpy as np
 import pytest
 
 import lagrange as lg
+from lagrange.planar.lower import lower as planar
 from tests.helpers import (
     CHAINS,
     TRAJECTORY,
@@ -63,11 +64,12 @@ def simulate(chain, q0, qd0, us, dt, solver):
 def test_random_chains_cover_the_structures():
     """The seeded chains really mix joints at every depth, damping, armature and gears."""
     chains = [seeded_chain(seed) for seed in range(10)]
-    assert {c.n for c in chains} == set(range(2, 9))
+    lowered = [planar(c) for c in chains]
+    assert {c.nv for c in chains} == set(range(2, 9))
     assert any(has_slide_below_hinge(c) for c in chains)
-    assert any(c.joints[0] == "prismatic" for c in chains)
-    assert any(any(a != 0.0 for a in c.axes) for c in chains)
-    assert any(c.damping is not None for c in chains) and any(c.armature is not None for c in chains)
+    assert any(p.joints[0] == "prismatic" for p in lowered)
+    assert any(any(a != 0.0 for a in p.axes) for p in lowered)
+    assert any(p.damping is not None for p in lowered) and any(p.armature is not None for p in lowered)
     assert all(c.m >= 1 for c in chains) and any(c.m >= 2 for c in chains)
 
 
@@ -80,11 +82,11 @@ def test_kinematics_match_mujoco(chain, dt):
     model, data = mujoco_model(chain, dt)
     rng = np.random.default_rng(1)
     for _ in range(3):
-        q = rng.uniform(-2, 2, chain.n)
+        q = rng.uniform(-2, 2, chain.nv)
         data.qpos[:] = q
         mujoco.mj_kinematics(model, data)
-        ours = np.asarray(lg.positions(chain, jnp.asarray(q)))[:-1]
-        assert rel(data.xpos[1:, [0, 2]], ours) <= EXACT
+        ours = np.asarray(lg.positions(chain, jnp.asarray(q)))  # each body's origin: its joint's, (x, 0, z)
+        assert rel(data.xpos[1:, [0, 2]], ours[:, ::2]) <= EXACT
         assert np.all(data.xpos[1:, 1] == 0.0)
 
 
@@ -96,8 +98,9 @@ def test_dynamics_match_mujoco(chain, dt):
     """M (mj_fullM), bias forces (qfrc_bias + damping) and qacc (mj_forward) to 1e-10."""
     model, data = mujoco_model(chain, dt)
     rng = np.random.default_rng(0)
-    damping = np.zeros(chain.n) if chain.damping is None else np.asarray(chain.damping)
-    q, qd = rng.uniform(-3, 3, (5, chain.n)), rng.uniform(-3, 3, (5, chain.n))
+    lowered = planar(chain)
+    damping = np.zeros(chain.nv) if lowered.damping is None else np.asarray(lowered.damping)
+    q, qd = rng.uniform(-3, 3, (5, chain.nv)), rng.uniform(-3, 3, (5, chain.nv))
     u = rng.uniform(-2, 2, (5, chain.m))
     # vmapped and compiled once per chain: op-by-op (eager) evaluation of the recursive algorithms' scans costs
     # ~3x their compilation (4-8 links); below RECURSIVE_MIN links either costs a fraction of a second
@@ -107,7 +110,7 @@ def test_dynamics_match_mujoco(chain, dt):
     for k in range(5):
         data.qpos[:], data.qvel[:], data.ctrl[:] = q[k], qd[k], u[k]
         mujoco.mj_forward(model, data)
-        M_mj = np.zeros((chain.n, chain.n))
+        M_mj = np.zeros((chain.nv, chain.nv))
         mujoco.mj_fullM(model, data, M_mj)
         assert rel(M[k], M_mj) <= EXACT
         assert rel(bias[k], data.qfrc_bias - data.qfrc_passive) <= EXACT
@@ -127,7 +130,7 @@ def test_semi_implicit_euler_matches_mujoco_euler(chain, dt):
     q, qd = simulate(chain, q0, qd0, us, dt, lg.SemiImplicitEuler())
     assert rel(q, q_mj[0]) <= TRAJECTORY
     assert rel(qd, qd_mj[0]) <= TRAJECTORY
-    if chain.damping is not None:
+    if planar(chain).damping is not None:
         # the test sees the implicit damping: with MuJoCo's eulerdamp off the trajectories part
         model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_EULERDAMP
         q_explicit, _ = mujoco_batch_rollout(model, data, q0, qd0, us)

@@ -58,7 +58,8 @@ def test_a_non_finite_start_or_control_is_named_by_member():
 
 def test_shapes_are_checked_by_name():
     q0, qd0 = _starts()
-    with pytest.raises(ValueError, match=r"q0 and qd0 must both have shape \(B, 2\) for this chain, got \(2,\)"):
+    with pytest.raises(ValueError, match=r"q0 and qd0 must have shapes \(B, 2\) and \(B, 2\) for this tree, got "
+                                         r"\(2,\)"):
         lg.simulate_batch(CHAIN, q0[0], qd0[0], jnp.zeros((T, 1)), DT)
     with pytest.raises(ValueError, match=r"must have B = 4 \(q0's\), got \(3, 40, 1\)"):
         lg.simulate_batch(CHAIN, q0, qd0, jnp.zeros((3, T, 1)), DT)

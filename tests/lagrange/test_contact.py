@@ -30,7 +30,7 @@ import lagrange as lg
 from lagrange.planar import recursive, unrolled
 from lagrange.chain import Chain, Link
 from lagrange.model.contact import PenaltyContact
-from lagrange.dynamics import _folded
+from lagrange.planar.lower import lower as planar
 from lagrange.interop.mjcf import from_mjcf
 from lagrange.model.limits import PenaltyLimits
 from tests.helpers import mujoco_forward, rel
@@ -107,7 +107,7 @@ def test_the_unrolled_and_recursive_derivations_agree_with_contact():
                    Link("revolute", 3.0, 0.6, inertia=0.2, offset=0.3, sense=-1, range=(-0.3, 0.4), gear=5.0,
                         contacts=[(0.05, 0.1, 0.05), (0.0, -0.6, 0.04)])],
                   contact=PenaltyContact(KE, KD, KF, MU, ground=-0.4), limits=PenaltyLimits(LIMIT_KE, LIMIT_KD))
-    folded = _folded(chain)
+    folded = planar(chain)  # the lowered chain, its parameters NumPy arrays (folded)
     rng = np.random.default_rng(1)
     q, qd, u = (jnp.asarray(rng.uniform(-s, s, (20, k))) for s, k in ((0.8, 3), (3.0, 3), (1.0, 1)))
     names = ("forward_dynamics", "bias_forces", "energy")
@@ -156,14 +156,14 @@ def test_gradients_through_a_hopper_standing_on_the_ground_are_finite():
     gradient of the final state with respect to the initial state, the controls and the contact parameters."""
     contact, limits = _law()
     chain = from_mjcf(GYM / "hopper.xml", contact=contact, limits=limits)
-    q0 = jnp.zeros(chain.n).at[1].set(-0.0004)  # the foot's spots 0.4 mm deep
+    q0 = jnp.zeros(chain.nv).at[1].set(-0.0004)  # the foot's spots 0.4 mm deep
     us = jnp.zeros((40, chain.m))
 
     @eqx.filter_jit
     @eqx.filter_grad
     def grad(args):
         c, q0, us = args
-        traj = lg.simulate(c, q0, jnp.zeros(chain.n), us, 0.001, lg.SemiImplicitEuler())
+        traj = lg.simulate(c, q0, jnp.zeros(chain.nv), us, 0.001, lg.SemiImplicitEuler())
         return jnp.sum(traj.q[-1]) + jnp.sum(traj.qd[-1])
 
     g = grad((chain, q0, us))
@@ -225,8 +225,8 @@ def test_energy_with_damping_never_increases():
 
 
 def _ops(chain):
-    jaxpr = jax.make_jaxpr(lambda q, qd: lg.forward_dynamics(chain, q, qd, check=False))(jnp.zeros(chain.n),
-                                                                                        jnp.zeros(chain.n))
+    jaxpr = jax.make_jaxpr(lambda q, qd: lg.forward_dynamics(chain, q, qd, check=False))(jnp.zeros(chain.nv),
+                                                                                        jnp.zeros(chain.nv))
     return len(jaxpr.eqns) + sum(len(e.params.get("jaxpr", jaxpr).eqns) if hasattr(e.params.get("jaxpr"), "eqns")
                                  else 0 for e in jaxpr.eqns)
 
@@ -241,7 +241,7 @@ def test_contact_costs_nothing_where_nothing_can_touch():
 
     extra = [_ops(chain(n, True)) - _ops(chain(n, False)) for n in (4, 8)]
     assert extra[0] > 0 and extra[0] == extra[1], extra
-    assert chain(4, False).contact is None and chain(4, False).contact_points is None
+    assert chain(4, False).contact is None and planar(chain(4, False)).contact_points is None
 
 
 @pytest.mark.parametrize("make, error, message", [

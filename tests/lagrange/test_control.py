@@ -16,7 +16,7 @@ G = 9.81
 
 def weights(task, r):
     """The research scripts' weights: Q = diag(1 on q, 0.01 on qd), R = r I."""
-    n = task.chain.n
+    n = task.chain.nv
     return np.diag([1.0] * n + [0.01] * n), r * np.eye(task.chain.m)
 
 

@@ -16,7 +16,6 @@ factor ``cond(M)``; they are compared to ``1e-13 cond(M)`` relative.
 
 import functools
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -25,7 +24,8 @@ from jax.test_util import check_grads
 
 import lagrange as lg
 from lagrange.chain import Chain, Link
-from tests.helpers import REL, assert_close, oracle_terms, per_state, random_chain, states
+from lagrange.planar.lower import lower as planar
+from tests.helpers import REL, assert_close, oracle_terms, per_state, random_chain, rebuilt, states
 from oracles import closed_form as cf
 from oracles import euler_lagrange as el
 
@@ -68,7 +68,7 @@ def test_closed_forms(which):
     cases = list(_default_cases() if which == "defaults" else _closed_form_cases(rng))
     assert [c[0] for c in cases] == ["pendulum", "cartpole", "acrobot", "double_cartpole"]
     for name, chain, ref, p in cases:
-        q, qd = states(rng, chain.n)
+        q, qd = states(rng, chain.nv)
         u = jnp.asarray(rng.uniform(-1, 1, (q.shape[0], 1)))
         got = jax.jit(
             jax.vmap(
@@ -112,7 +112,7 @@ def chain_results(n):
     for seed in range(100 * n, 100 * n + 100):  # the first seed giving a mix of joint kinds
         rng = np.random.default_rng(seed)
         chain = random_chain(rng, n)
-        revolute = chain.joints.count("revolute")
+        revolute = planar(chain).joints.count("revolute")
         if n < 3 or (revolute >= n / 2 and revolute < n):
             break
     q, qd = states(rng, n, k=4)
@@ -173,22 +173,23 @@ def test_frame_offsets_and_off_line_coms_match_euler_lagrange(n):
 
     rng = np.random.default_rng(70 + n)
     chain = random_chain(rng, n, frames=True)
-    assert chain.com_normal is not None and any(o != 0.0 for o in chain.offsets)
+    assert planar(chain).com_normal is not None and any(o != 0.0 for o in planar(chain).offsets)
     q, qd = states(rng, n, k=4)
-    modules = [recursive] + ([dynamics] if n < dynamics.RECURSIVE_MIN else [])
+    # the recursive algorithms on the lowered chain at any size; the public functions (the unrolled derivation here)
+    modules = [(recursive, planar(chain))] + ([(dynamics, chain)] if n < dynamics.RECURSIVE_MIN else [])
 
     @jax.jit
     @jax.vmap
     def run(q, qd):
         el_M, el_bias, el_gravity = oracle_terms(chain, q, qd)
         out = {"el": (el_M, el_bias, el_gravity, sum(el.energy(chain, q, qd)), el.com_and_angles(chain, q)[0])}
-        for mod in modules:
-            out[mod.__name__] = (mod.mass_matrix(chain, q), mod.bias_forces(chain, q, qd), mod.gravity_forces(chain, q),
-                                 sum(mod.energy(chain, q, qd)), lg.com_positions(chain, q))
+        for mod, c in modules:
+            out[mod.__name__] = (mod.mass_matrix(c, q), mod.bias_forces(c, q, qd), mod.gravity_forces(c, q),
+                                 sum(mod.energy(c, q, qd)), lg.com_positions(chain, q)[..., ::2])
         return out
 
     out = run(q, qd)
-    for mod in modules:
+    for mod, _ in modules:
         for name, a, b in zip(("M", "bias", "gravity", "energy", "com"), out[mod.__name__], out["el"]):
             assert_close(a, b, what=f"{name} ({mod.__name__})")
 
@@ -202,7 +203,7 @@ def test_control_range_clamps_before_the_gear():
     for u, clamped in (([3.0, 7.0], [0.5, 7.0]), ([-4.0, -1.0], [-1.0, -1.0]), ([0.2, 1.0], [0.2, 1.0])):
         assert_close(lg.forward_dynamics(chain, q, qd, jnp.array(u)),
                      lg.forward_dynamics(free, q, qd, jnp.array(clamped)))
-    assert chain.control_ranges == ((-1.0, 0.5), None) and free.control_ranges is None
+    assert planar(chain).control_ranges == ((-1.0, 0.5), None) and free.control_ranges is None
     with pytest.raises(ValueError, match="control_range"):
         Link("revolute", 1.0, 1.0, control_range=(-1.0, 1.0))  # not actuated
     with pytest.raises(ValueError, match="control_range"):
@@ -211,7 +212,7 @@ def test_control_range_clamps_before_the_gear():
 
 def test_random_chains_cover_every_feature():
     """The random chains above exercise every optional term, so the comparison means something."""
-    chains = [chain_results(n)[0] for n in SIZES]
+    chains = [planar(chain_results(n)[0]) for n in SIZES]
     assert any("prismatic" in c.joints for c in chains)
     assert any(a != 0.0 for c in chains for a in c.axes)
     assert any(c.damping is not None for c in chains) and any(c.damping is None for c in chains)
@@ -229,7 +230,7 @@ def test_mass_matrix_spd_and_christoffel(n):
     # Built from one lower triangle, but XLA may duplicate and re-fuse a shared entry: a few ulps.
     assert_close(M, np.swapaxes(M, -1, -2), rel=4e-16)
     assert np.all(np.linalg.eigvalsh(M)[:, 0] > 0)
-    damping = 0.0 if chain.damping is None else np.asarray(chain.damping) * qd
+    damping = 0.0 if planar(chain).damping is None else np.asarray(planar(chain).damping) * qd
     Cqd = r["bias"] - r["gravity"] - damping
     assert_close(Cqd, np.einsum("bij,bj->bi", r["C"], qd))
     S = r["Mdot"] - 2 * r["C"]
@@ -264,7 +265,7 @@ def test_actuation_matrix_places_gears():
 def test_batch_dims(name):
     """Leading batch dimensions (3, 4, n) give the same numbers as one state at a time."""
     chain = getattr(lg.systems, name)(damping=0.3)
-    n, m = chain.n, chain.m
+    n, m = chain.nv, chain.m
     rng = np.random.default_rng(3)
     q = jnp.asarray(rng.uniform(-3, 3, (3, 4, n)))
     qd = jnp.asarray(rng.uniform(-3, 3, (3, 4, n)))
@@ -300,19 +301,15 @@ def test_parameter_gradients_finite_differences():
     float64 tolerance 1e-5 is met with a wide margin), in forward and reverse mode."""
     rng = np.random.default_rng(5)
     chain = random_chain(rng, 3, damped=1.0)
-    assert chain.damping is not None and chain.gravity is not None
+    assert planar(chain).damping is not None and planar(chain).gravity is not None
     q, qd = (x[0] for x in states(rng, 3, k=1))
     u = jnp.ones(chain.m)
 
     def f(mass, length, inertia, damping, gravity):
-        c = eqx.tree_at(
-            lambda c: (c.mass, c.length, c.inertia, c.damping, c.gravity),
-            chain,
-            (mass, length, inertia, damping, gravity),
-        )
+        c = rebuilt(chain, mass=mass, length=length, inertia=inertia, damping=damping, gravity=gravity)
         return lg.forward_dynamics(c, q, qd, u if c.m else None)
 
-    args = (chain.mass, chain.length, chain.inertia, chain.damping, chain.gravity)
+    args = (chain.mass, planar(chain).length, planar(chain).inertia, planar(chain).damping, planar(chain).gravity)
     check_grads(jax.jit(f), args, order=1, modes=("fwd", "rev"))
 
 
@@ -325,13 +322,12 @@ def test_parameter_gradients_match_closed_form():
     u = jnp.array([0.3])
 
     def f_lg(mass, inertia, g):
-        c = eqx.tree_at(lambda c: (c.mass, c.inertia, c.gravity), chain, (mass, inertia, g))
-        return lg.forward_dynamics(c, q, qd, u)
+        return lg.forward_dynamics(rebuilt(chain, mass=mass, inertia=inertia, gravity=g), q, qd, u)
 
     def f_cf(mass, inertia, g):
         pp = p._replace(m1=mass[0], m2=mass[1], I1=inertia[0], I2=inertia[1], gravity=g)
         return cf.acrobot.forward_dynamics(pp, q, qd, u)
 
-    args = (chain.mass, chain.inertia, chain.gravity)
+    args = (chain.mass, planar(chain).inertia, planar(chain).gravity)
     for a, b in zip(jax.jacrev(f_lg, argnums=(0, 1, 2))(*args), jax.jacrev(f_cf, argnums=(0, 1, 2))(*args)):
         assert_close(a, b, rel=1e-10)

@@ -162,10 +162,19 @@ def test_no_module_of_lagrange_names_an_algorithm():
 
 
 def test_chain_imports_no_other_module():
-    """``lagrange.chain``, its checks (``lagrange.model.checks``) and the laws it holds (``lagrange.model.contact``,
-    ``lagrange.model.limits``) are the root of the physics: the parameters and their checks, no dynamics."""
+    """``lagrange.chain`` (a builder of a :class:`lagrange.Tree`), the model it builds (``lagrange.model.tree``,
+    ``lagrange.model.joints``), its checks (``lagrange.model.checks``) and the laws it holds
+    (``lagrange.model.contact``, ``lagrange.model.limits``) are the root of the physics: the parameters and their
+    checks, no dynamics and no backend. (``Chain.links`` reads a chain back through the planar backend's lowering,
+    ``lagrange.planar.lower``, imported when called; the lowering itself computes no dynamics.)"""
     graph = import_graph("lagrange")
-    assert graph["lagrange.chain"] == {"lagrange.model.checks", "lagrange.model.contact", "lagrange.model.limits"}
+    assert graph["lagrange.chain"] == {"lagrange.model.checks", "lagrange.model.contact", "lagrange.model.limits",
+                                       "lagrange.model.tree", "lagrange.model.joints", "lagrange.model.link",
+                                       "lagrange.math.scalar", "lagrange.planar.lower"}
+    assert not any(m.startswith(("lagrange.dynamics", "lagrange.integrate")) or m.endswith("backend")
+                   for m in graph["lagrange.planar.lower"]), graph["lagrange.planar.lower"]
+    for module in ("lagrange.model.tree", "lagrange.model.joints"):
+        assert all(m.startswith(("lagrange.model.", "lagrange.math.")) for m in graph[module]), graph[module]
     assert graph["lagrange.model.checks"] <= {"lagrange.model.contact", "lagrange.model.limits"}
     assert graph["lagrange.model.contact"] == set() and graph["lagrange.model.limits"] == {"lagrange.model.contact"}
 

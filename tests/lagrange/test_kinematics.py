@@ -1,7 +1,8 @@
-"""Forward kinematics (lagrange/kinematics.py): ``positions`` and ``com_positions`` against trigonometry written by
-hand (q = 0 hangs down; a link at absolute angle phi points along (sin phi, -cos phi); a cart slides along x, or
-along its axis turned by the angle before it), their batch shapes, and the frames' velocity jets against
-``jax.jvp`` of the positions. Joint origins against MuJoCo's ``xpos`` are in test_against_mujoco.py.
+"""Forward kinematics (lagrange/kinematics.py): ``positions``, ``tip_positions`` and ``com_positions`` of planar
+chains against trigonometry written by hand (q = 0 hangs down; a link at absolute angle phi points along
+(sin phi, -cos phi); a cart slides along x, or along its axis turned by the angle before it; every row ``(x, 0, z)``
+in the world's x-z plane), their batch shapes, and the planar backend's frame jets (lagrange/planar/frames.py)
+against ``jax.jvp`` of the positions. Joint origins against MuJoCo's ``xpos`` are in test_against_mujoco.py.
 
 Tolerance: a handful of float64 operations on O(1) numbers, so 1e-14 absolute (measured ~1e-16).
 """
@@ -14,14 +15,22 @@ import numpy as np
 import pytest
 
 import lagrange as lg
-from lagrange import kinematics
 from lagrange.chain import Chain, Link
+from lagrange.kinematics import tip_positions
+from lagrange.planar.frames import frames
+from lagrange.planar.lower import lower as planar
 
 ATOL = 1e-14
 
 
 def _d(phi):
     return np.array([math.sin(phi), -math.cos(phi)])
+
+
+def _in_plane(rows):
+    """``(x, z)`` rows as the world's ``(x, 0, z)``."""
+    rows = np.asarray(rows)
+    return np.stack([rows[..., 0], np.zeros(rows.shape[:-1]), rows[..., 1]], axis=-1)
 
 
 def test_two_link_chain_by_hand():
@@ -35,8 +44,9 @@ def test_two_link_chain_by_hand():
         want = np.stack([np.zeros(2), elbow, tip])
         want_com = np.stack([c1 * _d(q1), elbow + c2 * _d(q1 + q2)])
         q = jnp.array([q1, q2])
-        np.testing.assert_allclose(lg.positions(chain, q), want, rtol=0, atol=ATOL)
-        np.testing.assert_allclose(lg.com_positions(chain, q), want_com, rtol=0, atol=ATOL)
+        np.testing.assert_allclose(lg.positions(chain, q), _in_plane(want[:2]), rtol=0, atol=ATOL)  # the joints
+        np.testing.assert_allclose(tip_positions(chain, q), _in_plane(want[1:]), rtol=0, atol=ATOL)  # the links' ends
+        np.testing.assert_allclose(lg.com_positions(chain, q), _in_plane(want_com), rtol=0, atol=ATOL)
 
 
 def test_cart_and_slanted_slide_by_hand():
@@ -49,24 +59,27 @@ def test_cart_and_slanted_slide_by_hand():
         pivot = np.array([x, 0.0])
         e = np.array([math.cos(th + a), math.sin(th + a)])  # e(phi + axis), phi = th the pole's absolute angle
         slider = pivot + l * _d(th) + s * e
-        want = np.stack([pivot, pivot, slider, slider + 0.2 * _d(th)])  # the pole hinges on the cart (length 0)
+        want = np.stack([pivot, pivot, slider])  # the pole hinges on the cart (length 0)
+        tips = np.stack([pivot, pivot + l * _d(th), slider + 0.2 * _d(th)])
         want_com = np.stack([pivot, pivot + c * _d(th), slider + 0.1 * _d(th)])
         q = jnp.array([x, th, s])
-        np.testing.assert_allclose(lg.positions(chain, q), want, rtol=0, atol=ATOL)
-        np.testing.assert_allclose(lg.com_positions(chain, q), want_com, rtol=0, atol=ATOL)
+        np.testing.assert_allclose(lg.positions(chain, q), _in_plane(want), rtol=0, atol=ATOL)
+        np.testing.assert_allclose(tip_positions(chain, q), _in_plane(tips), rtol=0, atol=ATOL)
+        np.testing.assert_allclose(lg.com_positions(chain, q), _in_plane(want_com), rtol=0, atol=ATOL)
 
 
 @pytest.mark.parametrize("batch", [(), (5,), (3, 4)], ids=str)
 def test_batch_shapes_and_rows(batch):
-    """(*batch, n + 1, 2) and (*batch, n, 2), each row the single-state result."""
+    """(*batch, bodies, 3) each, each row the single-state result."""
     chain = lg.systems.double_cartpole()
     q = jnp.asarray(np.random.default_rng(2).uniform(-3, 3, batch + (3,)))
-    p, c = lg.positions(chain, q), lg.com_positions(chain, q)
-    assert p.shape == batch + (4, 2) and c.shape == batch + (3, 2)
+    p, c, t = lg.positions(chain, q), lg.com_positions(chain, q), tip_positions(chain, q)
+    assert p.shape == c.shape == t.shape == batch + (3, 3)
     flat_q = q.reshape(-1, 3)
     for i, qi in enumerate(flat_q):
-        np.testing.assert_allclose(p.reshape(-1, 4, 2)[i], lg.positions(chain, qi), rtol=0, atol=ATOL)
-        np.testing.assert_allclose(c.reshape(-1, 3, 2)[i], lg.com_positions(chain, qi), rtol=0, atol=ATOL)
+        np.testing.assert_allclose(p.reshape(-1, 3, 3)[i], lg.positions(chain, qi), rtol=0, atol=ATOL)
+        np.testing.assert_allclose(c.reshape(-1, 3, 3)[i], lg.com_positions(chain, qi), rtol=0, atol=ATOL)
+        np.testing.assert_allclose(t.reshape(-1, 3, 3)[i], tip_positions(chain, qi), rtol=0, atol=ATOL)
 
 
 def test_frame_jets_are_the_derivatives_of_the_positions():
@@ -77,11 +90,11 @@ def test_frame_jets_are_the_derivatives_of_the_positions():
                    Link("revolute", 1.0, 0.6, com=0.2), Link("prismatic", 1.0, 0.5)])
     rng = np.random.default_rng(3)
     q, qd = jnp.asarray(rng.uniform(-2, 2, 4)), jnp.asarray(rng.uniform(-2, 2, 4))
-    com = lambda q: lg.com_positions(chain, q)  # noqa: E731
+    com = lambda q: lg.com_positions(chain, q)[..., ::2]  # noqa: E731  (x, z)
     value, velocity = jax.jvp(com, (q,), (qd,))
     accel = jax.jvp(lambda q: jax.jvp(com, (q,), (qd,))[1], (q,), (qd,))[1]
     jac = jax.jacfwd(com)(q)  # (n, 2, n)
-    f = kinematics.frames(chain, q, qd)
+    f = frames(planar(chain), q, qd)
     for i, point in enumerate(f.com):
         for k, jet in enumerate(point):
             assert abs(float(jet.v) - float(value[i, k])) <= ATOL
@@ -94,4 +107,4 @@ def test_frame_jets_are_the_derivatives_of_the_positions():
     assert f.revolute_before == [(), (1,), (1, 2), (1, 2)]
     np.testing.assert_allclose([float(r) for r in f.angle_rate], [0.0, qd[1], qd[1] + qd[2], qd[1] + qd[2]],
                                rtol=0, atol=ATOL)
-    assert all(r is None for r in kinematics.frames(chain, q).angle_rate)  # no velocities asked for
+    assert all(r is None for r in frames(planar(chain), q).angle_rate)  # no velocities asked for

@@ -15,6 +15,7 @@ import pytest
 
 import lagrange as lg
 import optim
+from lagrange.planar.lower import lower as planar
 from lagrange.tasks import Cheetah, Hopper, TaskState
 from lagrange.tasks.locomotion import DFLEX_SOLVER, capsule_mass_and_inertia
 from optim.shac.losses import actor_loss
@@ -24,18 +25,20 @@ from policies import Actor, Critic
 def test_the_bodies_are_dflex_s():
     hopper, cheetah = Hopper.diffrl().chain, Cheetah.diffrl().chain
     np.testing.assert_allclose(np.asarray(hopper.mass), [0, 0, 3.665191, 4.057891, 2.781357, 5.315575], atol=1e-6)
-    np.testing.assert_allclose(np.asarray(hopper.inertia)[2:], [0.069246, 0.093299, 0.072303, 0.103523], atol=1e-6)
+    np.testing.assert_allclose(np.asarray(planar(hopper).inertia)[2:], [0.069246, 0.093299, 0.072303, 0.103523],
+                               atol=1e-6)
     np.testing.assert_allclose(np.asarray(cheetah.mass)[2:], [9.457333, 2.335527, 2.402003, 1.657471, 2.175984,
                                                               1.817013, 1.338385], atol=1e-6)
-    np.testing.assert_allclose(np.asarray(cheetah.inertia)[2:], [1.357449, 0.025488, 0.027641, 0.009612, 0.020790,
-                                                                 0.012441, 0.005340], atol=1e-6)
+    np.testing.assert_allclose(np.asarray(planar(cheetah).inertia)[2:], [1.357449, 0.025488, 0.027641, 0.009612,
+                                                                         0.020790, 0.012441, 0.005340], atol=1e-6)
     assert abs(float(jnp.sum(cheetah.mass)) - 21.1837) < 1e-3
     # the torso's centre of mass (DFlex: (0.152390, 0.025398) in the torso's frame)
-    assert abs(float(cheetah.com_normal[2]) - 0.152390) < 1e-6 and abs(float(-cheetah.com[2]) - 0.025398) < 1e-6
+    lowered = planar(cheetah)
+    assert abs(float(lowered.com_normal[2]) - 0.152390) < 1e-6 and abs(float(-lowered.com[2]) - 0.025398) < 1e-6
     m, i = capsule_mass_and_inertia(0.05, 0.4)
     assert abs(m - 3.665191) < 1e-6 and abs(i - 0.069246) < 1e-6
-    assert cheetah.parents == (-1, 0, 1, 2, 3, 4, 2, 6, 7) and hopper.serial
-    assert len(hopper.contact_links) == 8 and len(cheetah.contact_links) == 16
+    assert cheetah.parents == (-1, 0, 1, 2, 3, 4, 2, 6, 7) and planar(hopper).serial
+    assert len(planar(hopper).contact_links) == 8 and len(planar(cheetah).contact_links) == 16
 
 
 @pytest.mark.parametrize("make, total, armature", [(Hopper.diffrl, 15.820014, 1.0), (Cheetah.diffrl, 21.183716, 0.1)])
@@ -43,7 +46,7 @@ def test_the_tree_is_assembled(make, total, armature):
     """At any pose the x slide moves every mass: M[0, 0] = total mass + armature; gravity's pull on the z slide is the
     total weight; at rest the lowest contact spot is where DFlex puts it."""
     task = make()
-    q = jax.random.uniform(jax.random.PRNGKey(0), (task.chain.n,), minval=-0.5, maxval=0.5)
+    q = jax.random.uniform(jax.random.PRNGKey(0), (task.chain.nq,), minval=-0.5, maxval=0.5)
 
     @jax.jit
     def terms(q, start):  # one compiled program (op by op, each operation is a compilation)
@@ -53,7 +56,7 @@ def test_the_tree_is_assembled(make, total, armature):
     M, gravity, pts = terms(q, jnp.asarray(task.start))
     assert abs(float(M[0, 0]) - (total + armature)) < 1e-4 and abs(float(M[1, 1]) - (total + armature)) < 1e-4
     assert abs(float(gravity[1]) - 9.81 * total) < 1e-3
-    lowest = float(jnp.min(pts[:, 1] - task.chain.contact_points[:, 2]))
+    lowest = float(jnp.min(pts[:, 2] - planar(task.chain).contact_points[:, 2]))  # z - radius
     assert abs(lowest - (0.04 if task.name == "hopper" else 0.1759)) < 1e-3, lowest
 
 
@@ -83,7 +86,7 @@ def test_reset_noise(make, nq, nqd, start):
     s, obs = draw(jax.random.PRNGKey(1))
     q = np.asarray(s.q) - np.asarray(task.start)
     assert np.all(np.abs(q) <= nq) and np.all(np.abs(np.asarray(s.qd)) <= nqd) and np.max(np.abs(q)) > 0.9 * nq
-    assert task.start[1] == start and obs.shape == (2 * task.chain.n - 1,)
+    assert task.start[1] == start and obs.shape == (2 * task.chain.nv - 1,)
     assert task.solver == DFLEX_SOLVER and task.dt == 1 / 60 and task.substeps == 16 and task.horizon == 1000
 
 

@@ -11,7 +11,6 @@ M/bias/gravity ~1e-15, accelerations ~1e-14 (n <= 12).
 import functools
 import time
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -21,8 +20,9 @@ import lagrange as lg
 from lagrange import dynamics
 from lagrange.planar import recursive
 from lagrange.planar.recursive.kinematics import LinkKinematics
+from lagrange.planar.lower import lower as planar
 from tests.helpers import assert_close  # REL = 1e-12, as the docstring says
-from tests.helpers import oracle_terms
+from tests.helpers import oracle_terms, rebuilt
 from tests.helpers import random_chain as _random_chain
 from oracles import euler_lagrange as el
 
@@ -33,7 +33,7 @@ def random_chain(rng, n, cart=False):
 
 
 def states(rng, chain, k=8):
-    n = chain.n
+    n = chain.nv
     q = jnp.asarray(rng.uniform(-np.pi, np.pi, (k, n)))
     qd = jnp.asarray(rng.uniform(-3.0, 3.0, (k, n)))
     u = jnp.asarray(rng.uniform(-2.0, 2.0, (k, chain.m))) if chain.m else None
@@ -44,7 +44,8 @@ def _quantities(module, chain, q, qd, u, h=0.05):
     """(M, bias, gravity, qdd, qdd with implicit damping h) for one state."""
     if module is el:  # the oracle has no gravity_forces: the bias at rest (tests.helpers); qdd solved by the caller
         return (*oracle_terms(chain, q, qd), None, None)
-    if module is recursive:
+    if module is recursive:  # the planar backend's algorithms, on the lowered chain
+        chain = planar(chain)
         fd = lambda h: recursive.forward_dynamics(chain, q, qd, u, implicit_damping_dt=h)  # noqa: E731
     else:
         fd = lambda h: dynamics.forward_dynamics(chain, q, qd, u, implicit_damping_dt=h, check=False)  # noqa: E731
@@ -66,8 +67,8 @@ def test_agrees_with_unrolled_and_oracle(n):
 
     def everything(q, qd, u):
         out = dict(rec=_quantities(recursive, chain, q, qd, u), el=_quantities(el, chain, q, qd, u))
-        out["tau_id"] = recursive.inverse_dynamics(chain, q, qd, out["rec"][3])
-        out["energy_rec"], out["energy_el"] = recursive.energy(chain, q, qd), el.energy(chain, q, qd)
+        out["tau_id"] = recursive.inverse_dynamics(planar(chain), q, qd, out["rec"][3])
+        out["energy_rec"], out["energy_el"] = recursive.energy(planar(chain), q, qd), el.energy(chain, q, qd)
         if with_unrolled:
             out["unr"] = _quantities(dynamics, chain, q, qd, u)
         return out
@@ -84,7 +85,7 @@ def test_agrees_with_unrolled_and_oracle(n):
     qdde = np.linalg.solve(np.asarray(Me), np.asarray(tau - be)[..., None])[..., 0]  # el.forward_dynamics
     assert_close(qdd, qdde, rel=1e-13 * cond, what="qdd vs oracle")
     # implicit damping: (M + h diag(b)) qdd = B u - bias
-    Mh = M if chain.damping is None else M + 0.05 * jnp.diag(chain.damping)
+    Mh = M if planar(chain).damping is None else M + 0.05 * jnp.diag(planar(chain).damping)
     assert_close(jnp.einsum("kij,kj->ki", Mh, qdd_h), tau - bias, what="implicit damping")
     assert_close(out["tau_id"], tau, rel=1e-13 * cond, what="inverse of forward dynamics")
     for a, b, name in zip(out["energy_rec"], out["energy_el"], ("kinetic", "potential")):
@@ -103,8 +104,9 @@ def test_long_chains_satisfy_equations_of_motion(n):
     """For long chains: ABA's qdd solves ``M qdd + bias = B u`` with M from CRBA and the bias from
     RNEA, and CRBA's M equals RNEA's columns ``M e_j = ID(q, 0, e_j) - ID(q, 0, 0)``."""
     rng = np.random.default_rng(n)
-    chain = random_chain(rng, n, cart=True)
-    q, qd, u = states(rng, chain, k=4)
+    tree = random_chain(rng, n, cart=True)
+    q, qd, u = states(rng, tree, k=4)
+    chain = planar(tree)
     M, bias, qdd = jax.jit(jax.vmap(lambda q, qd, u: (
         recursive.mass_matrix(chain, q), recursive.bias_forces(chain, q, qd),
         recursive.forward_dynamics(chain, q, qd, u))))(q, qd, u)
@@ -152,7 +154,7 @@ def test_public_api_dispatches_on_threshold():
 
 
 def _with_mass(chain, mass):
-    return eqx.tree_at(lambda c: c.mass, chain, mass)
+    return rebuilt(chain, mass=mass)
 
 
 def test_gradients_match_unrolled_and_finite_differences():
@@ -168,7 +170,7 @@ def test_gradients_match_unrolled_and_finite_differences():
         def loss(fd, q, qd, mass):
             return jnp.sum(w * jnp.tanh(fd(_with_mass(chain, mass), q, qd, u)))
 
-        rec = jax.jit(functools.partial(loss, lambda c, q, qd, u: recursive.forward_dynamics(c, q, qd, u)))
+        rec = jax.jit(functools.partial(loss, lambda c, q, qd, u: recursive.forward_dynamics(planar(c), q, qd, u)))
         args = (q, qd, chain.mass)
         g = jax.jit(jax.grad(rec, argnums=(0, 1, 2)))(*args)
         if n == 4:  # lg.forward_dynamics derives a 4-link chain unrolled
@@ -195,7 +197,7 @@ def test_energy_conserved_20_link_pendulum():
     traj = jax.jit(lambda q0: lg.simulate(chain, q0, jnp.zeros(n), None, 0.01, lg.Dopri8(), substeps=5, steps=50))(q0)
 
     E = jax.jit(jax.vmap(lambda q, qd: sum(lg.energy(chain, q, qd))))(traj.q, traj.qd)  # compiled: 5x faster than eager
-    scale = float(jnp.sum(chain.mass) * chain.gravity * jnp.sum(chain.length))
+    scale = float(jnp.sum(chain.mass) * planar(chain).gravity * jnp.sum(planar(chain).length))
     moved = float(jnp.max(jnp.abs(traj.q[-1] - q0)))
     assert moved > 0.1  # it did swing
     err = float(jnp.max(jnp.abs(E - E[0])))
@@ -231,7 +233,7 @@ def test_link_angles_sines_by_angle_addition_stay_exact(n):
     """The kinematics scan forms the link angles' sines and cosines by the angle-addition formulas from the joint
     angles': their rounding adds up over the links. Against the exact sines of the summed angles (long double)
     the error stays under 20 float64 ulps at 1 (measured 1.3e-15 at n = 32, 1.9e-15 at n = 64)."""
-    chain = dynamics._folded(lg.systems.n_link_pendulum(n))
+    chain = planar(lg.systems.n_link_pendulum(n))  # the lowered chain: its parameters NumPy arrays
     q = np.random.default_rng(0).uniform(-3, 3, (n, 4096))
     k = LinkKinematics(chain, jnp.asarray(q), None, 1)
     phi = np.cumsum(q.astype(np.longdouble), axis=0)

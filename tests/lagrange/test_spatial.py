@@ -383,7 +383,7 @@ def test_bad_input_is_refused_by_name():
     tree = Tree([Body(1.0, (1, 1, 1), joints=[Ball()])])
     with pytest.raises(ValueError, match=r"q must have shape \(\.\.\., 4\)"):
         lg.mass_matrix(tree, jnp.zeros(3))
-    with pytest.raises(NotImplementedError, match="MomentumEuler runs on planar chains only"):
+    with pytest.raises(NotImplementedError, match="MomentumEuler runs on planar trees only"):
         lg.simulate(tree, jnp.array([1.0, 0, 0, 0]), jnp.zeros(3), None, 0.01, lg.MomentumEuler(), steps=2)
 
 

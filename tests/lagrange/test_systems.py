@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import lagrange as lg
+from lagrange.planar.lower import lower as planar
 from tests.helpers import assert_close, per_state, states
 from oracles import closed_form as cf
 
@@ -41,9 +42,10 @@ def test_com_and_inertia_keywords_match_closed_forms():
     hand-written equations with those parameters, to 1e-12."""
     rng = np.random.default_rng(2)
     cases = list(_com_inertia_cases(rng))
-    assert np.allclose(cases[1][1].inertia, 1.0) and np.allclose(cases[1][1].com, 0.45)  # the presets are not the rods
+    preset = planar(cases[1][1])
+    assert np.allclose(preset.inertia, 1.0) and np.allclose(preset.com, 0.45)  # the presets are not the rods
     for name, chain, ref, p in cases:
-        q, qd = states(rng, chain.n)
+        q, qd = states(rng, chain.nv)
         u = jnp.asarray(rng.uniform(-1, 1, (q.shape[0], 1)))
         got = per_state(lambda ch, q, qd, u: (lg.mass_matrix(ch, q), lg.bias_forces(ch, q, qd),
                                               lg.forward_dynamics(ch, q, qd, u)), chain, q, qd, u)
@@ -72,7 +74,7 @@ def test_defaults_are_the_papers_constants():
         "acrobot": (("revolute", "revolute"), (2.5, 2.5), (1.0, 1.0), (1,), (25.0,)),
     }
     for name, (joints, mass, length, actuated, gear) in want.items():
-        c = getattr(lg.systems, name)()
+        c = planar(getattr(lg.systems, name)())  # the planar backend's reading: the links' parameters
         assert (c.joints, c.actuated, c.n, c.m) == (joints, actuated, len(joints), 1), name
         np.testing.assert_array_equal(c.mass, mass)
         np.testing.assert_array_equal(c.length, length)
@@ -85,11 +87,11 @@ def test_defaults_are_the_papers_constants():
 
 def test_n_link_pendulum():
     """``n`` identical 1 kg, 1 m rods; passive unless ``gear`` is given, then every joint actuated; ``n`` checked."""
-    c = lg.systems.n_link_pendulum(4)
+    c = planar(lg.systems.n_link_pendulum(4))
     assert (c.n, c.m, c.actuated, c.joints) == (4, 0, (), ("revolute",) * 4)
     np.testing.assert_array_equal(c.mass, [1.0] * 4) and np.testing.assert_array_equal(c.length, [1.0] * 4)
     np.testing.assert_allclose(c.inertia, [_rod(1.0, 1.0)] * 4, rtol=1e-15)
-    g = lg.systems.n_link_pendulum(3, mass=0.5, length=0.25, gear=2.0, damping=0.1, gravity=3.7)
+    g = planar(lg.systems.n_link_pendulum(3, mass=0.5, length=0.25, gear=2.0, damping=0.1, gravity=3.7))
     assert (g.m, g.actuated) == (3, (0, 1, 2)) and float(g.gravity) == 3.7
     np.testing.assert_array_equal(g.gear, [2.0] * 3) and np.testing.assert_array_equal(g.damping, [0.1] * 3)
     np.testing.assert_allclose(g.inertia, [_rod(0.5, 0.25)] * 3, rtol=1e-15)
@@ -105,15 +107,15 @@ def test_brax_v1_is_the_authors_bodies():
     inertia of 1 kg m^2 on every link; the constructors build exactly those chains, with the paper's gears."""
     b = lg.systems.BRAX_V1
     assert set(b) == {"acrobot", "cartpole", "double_cartpole"}
-    a = lg.systems.acrobot(**b["acrobot"])
+    a = planar(lg.systems.acrobot(**b["acrobot"]))
     np.testing.assert_array_equal(a.mass, [2.5, 2.5]) and np.testing.assert_array_equal(a.length, [0.9, 0.9])
     np.testing.assert_array_equal(a.com, [0.45, 0.45]) and np.testing.assert_array_equal(a.inertia, [1.0, 1.0])
     np.testing.assert_array_equal(a.gear, [25.0])
-    c = lg.systems.cartpole(**b["cartpole"])
+    c = planar(lg.systems.cartpole(**b["cartpole"]))
     np.testing.assert_array_equal(c.mass, [10.471975, 5.0185914]) and np.testing.assert_array_equal(c.gear, [100.0])
     np.testing.assert_array_equal(c.length, [0.0, 0.6]) and np.testing.assert_array_equal(c.com, [0.0, 0.3])
     np.testing.assert_array_equal(c.inertia, [0.0, 1.0])
-    d = lg.systems.double_cartpole(**b["double_cartpole"])
+    d = planar(lg.systems.double_cartpole(**b["double_cartpole"]))
     np.testing.assert_array_equal(d.mass, [10.471975, 5.0185914, 5.0185914])
     np.testing.assert_array_equal(d.length, [0.0, 0.6, 0.6]) and np.testing.assert_array_equal(d.com, [0.0, 0.3, 0.3])
     np.testing.assert_array_equal(d.inertia, [0.0, 1.0, 1.0]) and np.testing.assert_array_equal(d.gear, [1000.0])
@@ -123,17 +125,19 @@ def test_brax_v1_is_the_authors_bodies():
 
 def test_every_parameter_is_a_keyword():
     """Each keyword reaches its field (a parameter the catalogue dropped would leave the default)."""
-    p = lg.systems.pendulum(mass=2.0, length=0.5, com=0.1, inertia=0.3, damping=0.2, gear=None, gravity=1.6)
+    p = planar(lg.systems.pendulum(mass=2.0, length=0.5, com=0.1, inertia=0.3, damping=0.2, gear=None, gravity=1.6))
     assert (p.m, float(p.gravity)) == (0, 1.6)
     np.testing.assert_array_equal([p.mass[0], p.length[0], p.com[0], p.inertia[0], p.damping[0]],
                                   [2.0, 0.5, 0.1, 0.3, 0.2])
-    c = lg.systems.cartpole(cart_mass=3.0, pole_mass=0.7, pole_length=2.0, damping=0.4, gear=7.0, gravity=1.0)
+    c = planar(lg.systems.cartpole(cart_mass=3.0, pole_mass=0.7, pole_length=2.0, damping=0.4, gear=7.0,
+                                   gravity=1.0))
     np.testing.assert_array_equal(c.mass, [3.0, 0.7]) and np.testing.assert_array_equal(c.length, [0.0, 2.0])
     np.testing.assert_array_equal(c.damping, [0.4, 0.0]) and np.testing.assert_array_equal(c.gear, [7.0])
     np.testing.assert_allclose(c.inertia, [0.0, _rod(0.7, 2.0)], rtol=1e-15)
-    a = lg.systems.acrobot(masses=(1.0, 2.0), lengths=(0.5, 1.5), damping=0.3, gear=4.0)
+    a = planar(lg.systems.acrobot(masses=(1.0, 2.0), lengths=(0.5, 1.5), damping=0.3, gear=4.0))
     np.testing.assert_array_equal(a.mass, [1.0, 2.0]) and np.testing.assert_array_equal(a.com, [0.25, 0.75])
     np.testing.assert_array_equal(a.damping, [0.3, 0.3]) and np.testing.assert_array_equal(a.gear, [4.0])
-    d = lg.systems.double_cartpole(cart_mass=2.0, pole_masses=(0.5, 0.25), pole_lengths=(0.4, 0.8), damping=0.1)
+    d = planar(lg.systems.double_cartpole(cart_mass=2.0, pole_masses=(0.5, 0.25), pole_lengths=(0.4, 0.8),
+                                          damping=0.1))
     np.testing.assert_array_equal(d.mass, [2.0, 0.5, 0.25]) and np.testing.assert_array_equal(d.com, [0.0, 0.2, 0.4])
     np.testing.assert_array_equal(d.damping, [0.1, 0.0, 0.0])

@@ -14,7 +14,9 @@ import pytest
 import lagrange as lg
 from lagrange import systems, tasks
 from lagrange.chain import Chain, Link
+from lagrange.planar.lower import lower as planar
 from lagrange.tasks import Acrobot, Cartpole, ChainSwingup, DiffRLCartpole, DoubleCartpole, TaskState
+from lagrange.tasks.base import joint_kinds
 from tests.helpers import states_equal
 
 FINAL = (Acrobot, Cartpole, DoubleCartpole, ChainSwingup, DiffRLCartpole)
@@ -119,19 +121,20 @@ def test_brax_v1_bodies():
         rods, brax = cls.rods(), cls.brax_v1()
         want_rods, want_brax = getattr(systems, name)(), getattr(systems, name)(**systems.BRAX_V1[name])
         for field in ("mass", "length", "com", "inertia", "gear", "damping"):
-            np.testing.assert_array_equal(getattr(rods.chain, field), getattr(want_rods, field))
-            np.testing.assert_array_equal(getattr(brax.chain, field), getattr(want_brax, field))
-        assert rods.chain.joints == brax.chain.joints == want_brax.joints == want_rods.joints
+            np.testing.assert_array_equal(getattr(planar(rods.chain), field), getattr(planar(want_rods), field))
+            np.testing.assert_array_equal(getattr(planar(brax.chain), field), getattr(planar(want_brax), field))
+        assert (joint_kinds(rods.chain) == joint_kinds(brax.chain) == joint_kinds(want_brax)
+                == joint_kinds(want_rods))
         assert (brax.name, brax.dt, brax.horizon, brax.noise, brax.substeps) == (rods.name, rods.dt, rods.horizon,
                                                                                   rods.noise, rods.substeps)
         np.testing.assert_allclose(brax.chain.gear, rods.chain.gear)
         poles = slice(brax.first_pole, None)
-        np.testing.assert_allclose(brax.chain.inertia[poles], 1.0)
-        assert np.all(np.asarray(rods.chain.inertia[poles]) < 0.5)
-    a = Acrobot.brax_v1().chain
+        np.testing.assert_allclose(planar(brax.chain).inertia[poles], 1.0)
+        assert np.all(np.asarray(planar(rods.chain).inertia[poles]) < 0.5)
+    a = planar(Acrobot.brax_v1().chain)
     np.testing.assert_allclose(a.mass, [2.5, 2.5]) and np.testing.assert_allclose(a.length, [0.9, 0.9])
     np.testing.assert_allclose(a.com, [0.45, 0.45]) and np.testing.assert_allclose(a.inertia, [1.0, 1.0])
-    d = DoubleCartpole.brax_v1().chain
+    d = planar(DoubleCartpole.brax_v1().chain)
     np.testing.assert_allclose(d.com[1:], [0.3, 0.3]) and np.testing.assert_allclose(d.length[1:], [0.6, 0.6])
     # the task records its bodies (a float64 rebuild, research.swingup_lqr.rerun_float64, reads them back)
     assert (Acrobot.rods().bodies, Acrobot.brax_v1().bodies) == ("rods", "brax_v1")
@@ -435,8 +438,10 @@ def test_fields_and_states_of_the_wrong_kind_are_refused_by_name():
         (lambda: Acrobot.rods(trig="yes"), ValueError, r"Acrobot\.trig must be True or False, got 'yes'"),
         (lambda: Acrobot.rods(solver="rk4"), TypeError, r"Acrobot\.solver must be one of lagrange\.RK4\(\)"),
         (lambda: DiffRLCartpole.diffrl(noise_q=-1.0), ValueError, r"DiffRLCartpole\.noise_q must be a number in \[0"),
-        (lambda: Acrobot(None), TypeError, r"Acrobot\.chain must be a lagrange\.Chain, got NoneType"),
-        (lambda: ChainSwingup("chain"), TypeError, r"ChainSwingup\.chain must be a lagrange\.Chain, got str"),
+        (lambda: Acrobot(None), TypeError,
+         r"Acrobot\.chain must be a lagrange\.Tree \(a lagrange\.chain\.Chain is one\), got NoneType"),
+        (lambda: ChainSwingup("chain"), TypeError,
+         r"ChainSwingup\.chain must be a lagrange\.Tree \(a lagrange\.chain\.Chain is one\), got str"),
     ]
     task = Acrobot.rods()
     s = task.reset(jax.random.PRNGKey(0))

@@ -20,6 +20,7 @@ import lagrange as lg
 from oracles import euler_lagrange as el
 from oracles.pinocchio import pinocchio_model
 from lagrange.chain import WORLD, Chain, Link
+from lagrange.planar.lower import lower as planar
 from tests.helpers import assert_close
 
 
@@ -39,14 +40,16 @@ def biped(**kw) -> Chain:
 
 def test_a_tree_by_hand():
     chain = biped()
-    assert chain.parents == (-1, 0, 1, 2, 3, 2, 5) and not chain.serial
-    assert chain.children(2) == (3, 5) and chain.path(6) == (0, 1, 2, 5, 6) and chain.attached == (3, 5)
-    assert chain.sprung == (4, 6) and chain.senses[6] == -1
+    assert chain.parents == (-1, 0, 1, 2, 3, 2, 5) and not planar(chain).serial
+    links = planar(chain)
+    assert links.children(2) == (3, 5) and links.path(6) == (0, 1, 2, 5, 6) and links.attached == (3, 5)
+    assert links.sprung == (4, 6) and links.senses[6] == -1
     again = Chain(chain.links())  # the links round-trip
-    assert again.parents == chain.parents and again.attached == chain.attached and again.senses == chain.senses
+    assert again.parents == chain.parents and planar(again).attached == links.attached
+    assert planar(again).senses == links.senses
     q = jnp.zeros(7)
-    tips = lg.kinematics.tip_positions(chain, q)
-    joints = lg.positions(chain, q)
+    tips = lg.kinematics.tip_positions(chain, q)[:, ::2]  # (x, z): the chain lives in the world's x-z plane
+    joints = lg.positions(chain, q)[:, ::2]
     # at q = 0 the torso points up from the base; the front leg hangs from the base, the back one from 0.1 m behind
     # it (x = -0.1 in the upright torso's frame, whose x is the world's -x); each foot 0.8 m below its hip
     np.testing.assert_allclose(np.asarray(tips[2]), [0.0, 0.5], atol=1e-15)
@@ -89,10 +92,10 @@ def forest() -> Chain:
 @pytest.mark.parametrize("make", [small_tree, biped, forest])
 def test_trees_match_the_literal_derivation(make):
     chain = make()
-    rng = np.random.default_rng(chain.n)
+    rng = np.random.default_rng(chain.nv)
     k = 6
-    q = jnp.asarray(rng.uniform(-np.pi, np.pi, (k, chain.n)))
-    qd = jnp.asarray(rng.uniform(-3, 3, (k, chain.n)))
+    q = jnp.asarray(rng.uniform(-np.pi, np.pi, (k, chain.nv)))
+    qd = jnp.asarray(rng.uniform(-3, 3, (k, chain.nv)))
     u = jnp.asarray(rng.uniform(-1, 1, (k, chain.m)))
     @jax.jit
     def both(q, qd, u):  # ours, the oracle's, and inverse dynamics at our qdd: one compilation
@@ -118,10 +121,10 @@ def test_a_branched_tree_matches_pinocchio():
     chain = Chain(links)
     model = pinocchio_model(chain)
     data = model.createData()
-    sign = np.array([-s if j == "revolute" else 1.0 for j, s in zip(chain.joints, chain.senses)])
-    model.armature = np.zeros(chain.n) if chain.armature is None else np.asarray(chain.armature)
+    sign = np.array([-s if j == "revolute" else 1.0 for j, s in zip(planar(chain).joints, planar(chain).senses)])
+    model.armature = np.zeros(chain.nv) if planar(chain).armature is None else np.asarray(planar(chain).armature)
     rng = np.random.default_rng(5)
-    q, qd, tau = rng.uniform(-2, 2, (5, chain.n)), rng.uniform(-3, 3, (5, chain.n)), rng.uniform(-5, 5, (5, chain.n))
+    q, qd, tau = rng.uniform(-2, 2, (5, chain.nv)), rng.uniform(-3, 3, (5, chain.nv)), rng.uniform(-5, 5, (5, chain.nv))
 
     @jax.jit
     def ours(q, qd, tau):
@@ -133,7 +136,7 @@ def test_a_branched_tree_matches_pinocchio():
         Mp = pin.crba(model, data, sign * q[k])
         Mp = np.triu(Mp) + np.triu(Mp, 1).T
         assert_close(M[k], sign[:, None] * Mp * sign[None, :], what="M")
-        assert_close(bias[k], sign * pin.rnea(model, data, sign * q[k], sign * qd[k], np.zeros(chain.n)), what="bias")
+        assert_close(bias[k], sign * pin.rnea(model, data, sign * q[k], sign * qd[k], np.zeros(chain.nv)), what="bias")
         assert_close(qdd[k], sign * pin.aba(model, data, sign * q[k], sign * qd[k], sign * tau[k]), rel=1e-11,
                      what="qdd")
 
@@ -143,8 +146,8 @@ def test_gradients_through_a_tree_rollout_match_central_differences():
     central differences (h = 1e-6). One compiled program gives the gradient and, at the shifted inputs, the values the
     differences take."""
     chain = biped()
-    q0 = jnp.asarray(np.random.default_rng(2).uniform(-0.3, 0.3, chain.n))
-    qd0 = jnp.zeros(chain.n)
+    q0 = jnp.asarray(np.random.default_rng(2).uniform(-0.3, 0.3, chain.nv))
+    qd0 = jnp.zeros(chain.nv)
     us = jnp.asarray(np.random.default_rng(3).uniform(-0.2, 0.2, (40, chain.m)))
 
     def objective(c, q0):
@@ -159,15 +162,19 @@ def test_gradients_through_a_tree_rollout_match_central_differences():
     g_chain, g_q0 = value_and_grad(chain, q0)[1]
     h = 1e-6
     for i in (1, 2, 6):
-        e = jnp.zeros(chain.n).at[i].set(h)
+        e = jnp.zeros(chain.nv).at[i].set(h)
         fd = (final(chain, q0 + e) - final(chain, q0 - e)) / (2 * h)
         assert abs(float(g_q0[i]) - float(fd)) <= 1e-6 * max(1.0, abs(float(fd)))
-    for field, idx in (("mass", 2), ("mass", 6), ("stiffness", 4), ("attach", (1, 0))):
+    # a link's mass, a knee's spring and the back hip's attach point (x): leaves of the tree's bodies and joints
+    leaves = {"mass 2": (lambda c: c.bodies[2].mass, ()), "mass 6": (lambda c: c.bodies[6].mass, ()),
+              "stiffness 4": (lambda c: c.bodies[4].joints[0].stiffness, ()),
+              "attach 5": (lambda c: c.bodies[5].pos, 0)}
+    for field, (leaf, idx) in leaves.items():
         def at(d):
-            return final(eqx.tree_at(lambda c: getattr(c, field), chain, getattr(chain, field).at[idx].add(d)), q0)
+            return final(eqx.tree_at(leaf, chain, jnp.asarray(leaf(chain)).at[idx].add(d)), q0)
 
         fd = (at(h) - at(-h)) / (2 * h)
-        assert abs(float(getattr(g_chain, field)[idx]) - float(fd)) <= 1e-6 * max(1.0, abs(float(fd))), field
+        assert abs(float(leaf(g_chain)[idx]) - float(fd)) <= 1e-6 * max(1.0, abs(float(fd))), field
 
 
 def test_energy_of_a_sprung_tree_is_conserved_at_rk4_order():

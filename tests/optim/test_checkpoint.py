@@ -85,10 +85,10 @@ def test_resume_and_load_accept_their_own_run(run):
     (dict(task=pendulum_swingup(horizon=20, noise=0.5, bodies="brax_v1")),
      r"another task or policy \(bodies: checkpoint None, requested 'brax_v1'; task\.bodies: checkpoint None"),
     (dict(task=ChainSwingup(lg.systems.pendulum(gear=5.0, mass=2.0), dt=0.05, horizon=20, noise=0.5)),
-     r"another task or policy \(task\.chain\.inertia: .*; task\.chain\.mass: checkpoint 'float64\[1\] \[1\.0\]', "
-     r"requested 'float64\[1\] \[2\.0\]'\)"),
+     r"another task or policy \(task\.chain\.bodies\[0\]\.inertia: .*; task\.chain\.bodies\[0\]\.mass: "
+     r"checkpoint 'float64\[\] \[1\.0\]', requested 'float64\[\] \[2\.0\]'\)"),
     (dict(task=ChainSwingup(lg.systems.pendulum(gear=6.0), dt=0.05, horizon=20, noise=0.5)),
-     r"\(task\.chain\.gear: checkpoint 'float64\[1\] \[5\.0\]', requested 'float64\[1\] \[6\.0\]'\)"),
+     r"\(task\.chain\.motors\[0\]\.gear: checkpoint 'float64\[\] \[5\.0\]', requested 'float64\[\] \[6\.0\]'\)"),
     (dict(task=dataclasses.replace(TASK, dt=0.04)), r"\(task\.dt: checkpoint 0\.05, requested 0\.04\)"),
     (dict(task=dataclasses.replace(TASK, noise=0.4)), r"\(task\.noise: checkpoint 0\.5, requested 0\.4\)"),
     (dict(task=dataclasses.replace(TASK, substeps=2)), r"\(task\.substeps: checkpoint 1, requested 2\)"),
@@ -107,7 +107,8 @@ def test_resume_refuses_another_run(run, change, message):
     (pendulum_swingup(horizon=20, noise=0.5, bodies="brax_v1"), None,
      r"another task or policy \(bodies: checkpoint None, given 'brax_v1'; task\.bodies: checkpoint None, given"),
     (ChainSwingup(lg.systems.pendulum(gear=5.0, length=1.5), dt=0.05, horizon=20, noise=0.5), None,
-     r"task\.chain\.length: checkpoint 'float64\[1\] \[1\.0\]', given 'float64\[1\] \[1\.5\]'"),
+     r"task\.chain\.bodies\[0\]\.tip: checkpoint 'float64\[3\] \[0\.0, 0\.0, -1\.0\]', "  # the link's length
+     r"given 'float64\[3\] \[0\.0, 0\.0, -1\.5\]'"),
     (pendulum_swingup(horizon=20, noise=0.5, trig=True), None, r"observation_size: checkpoint 2, given 3"),
     (TASK, tiny_mlp(TASK, width=8), r"policy_parameters: checkpoint"),
 ])

@@ -28,7 +28,7 @@ def test_episode_is_the_tasks_steps_one_at_a_time():
     norm = _normalizer(task.observation_size)
     key = jax.random.PRNGKey(2)
     ep = jax.jit(lambda k: optim.episode(task, policy, norm, k))(key)
-    n = task.chain.n
+    n = task.chain.nv
     assert ep.rewards.shape == (T,) and ep.obs.shape == (T, task.observation_size)
     assert ep.actions.shape == (T, task.action_size) and ep.q.shape == ep.qd.shape == (T + 1, n)
     s0 = task.reset(key)

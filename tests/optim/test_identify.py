@@ -22,7 +22,7 @@ def _acrobot(theta):
 
 def _rollouts(chain, q0, qd0, controls, dt, solver=lg.SemiImplicitEuler()):
     """``lg.simulate`` from each of the starts under its controls, all in one compiled program: ``(windows, T + 1,
-    2 n)`` states."""
+    nq + nv)`` states."""
     tr = jax.jit(jax.vmap(lambda *x: lg.simulate(chain, *x, dt, solver)))(jnp.asarray(q0), jnp.asarray(qd0),
                                                                           jnp.asarray(controls))
     return np.concatenate([tr.q, tr.qd], axis=-1)
@@ -48,9 +48,34 @@ def test_recovers_masses_and_damping():
     np.testing.assert_allclose(fit.chain.mass, [1.3, 0.7], rtol=1e-8)
 
 
+def _arm3d(theta):
+    """A 3-D arm: a torso on a ball joint (its quaternion in ``q``) carrying a forearm on a hinge about a tilted axis,
+    with masses ``exp(theta[:2])`` and the ball's damping ``exp(theta[2])``: not planar, the general algorithms."""
+    m, b = jnp.exp(theta[:2]), jnp.exp(theta[2])
+    return lg.Tree([lg.Body(m[0], (0.02, 0.03, 0.01), (0.0, 0.0, -0.2), joints=[lg.Ball(damping=b)]),
+                    lg.Body(m[1], (0.01, 0.01, 0.002), (0.0, 0.0, -0.15), joints=[lg.Hinge((0.3, 1.0, 0.0))],
+                            pos=(0.0, 0.05, -0.4))], motors=[lg.Motor(1, gear=0.5)])
+
+
+def test_recovers_a_3d_trees_masses_and_damping():
+    """The same fit on a 3-D tree (a ball joint's quaternion among the coordinates, ``nq = 5``, ``nv = 4``)."""
+    truth = np.log([1.3, 0.7, 0.05])
+    tree = _arm3d(jnp.asarray(truth))
+    assert not tree.planar and (tree.nq, tree.nv) == (5, 4)
+    rng = np.random.default_rng(3)
+    turn = [np.concatenate([[np.cos(a / 2)], np.sin(a / 2) * axis / np.linalg.norm(axis)])
+            for a, axis in zip(rng.uniform(-1, 1, 16), rng.normal(size=(16, 3)))]
+    q0 = np.stack([np.concatenate([t, rng.uniform(-1, 1, 1)]) for t in turn])
+    qd0, controls = rng.uniform(-2, 2, (16, 4)), np.repeat(rng.uniform(-1, 1, (16, 1, 1)), 6, axis=1)
+    states = _rollouts(tree, q0, qd0, controls, 0.01)
+    fit = identify(_arm3d, np.log([2.0, 1.2, 0.2]), states, controls, 0.01, lg.SemiImplicitEuler(), iterations=60)
+    assert float(fit.losses[-1]) < 1e-20 < float(fit.losses[0])
+    np.testing.assert_allclose(np.exp(fit.theta), np.exp(truth), rtol=1e-8)
+
+
 def test_argument_checks():
     states, controls = _windows(_acrobot(jnp.zeros(4)), np.random.default_rng(1), count=2, steps=3)
-    with pytest.raises(ValueError, match=r"states must have shape \(windows, T \+ 1 >= 2, 2 n = 4\)"):
+    with pytest.raises(ValueError, match=r"states must have shape \(windows, T \+ 1 >= 2, nq \+ nv = 4\)"):
         identify(_acrobot, jnp.zeros(4), states[..., :3], controls, 0.01)
     with pytest.raises(ValueError, match=r"controls must have shape \(windows, T, m\) = \(2, 3, 1\)"):
         identify(_acrobot, jnp.zeros(4), states, None, 0.01)
@@ -63,7 +88,8 @@ def test_argument_checks():
     with pytest.raises(ValueError, match=r"states must be finite; the data hold a NaN or an infinity at \[1, 2, 0\]"):
         identify(_acrobot, jnp.zeros(4), states.copy() + np.where(np.arange(states.size).reshape(states.shape)
                                                                   == (1 * 4 + 2) * 4, np.nan, 0), controls, 0.01)
-    with pytest.raises(TypeError, match=r"make_chain\(theta\) must return a lagrange\.Chain, got tuple"):
+    with pytest.raises(TypeError, match=r"make_chain\(theta\) must return a lagrange\.Tree \(a lagrange\.chain\.Chain "
+                                        r"is one\), got tuple"):
         identify(lambda th: (_acrobot(th),), jnp.zeros(4), states, controls, 0.01)
 
 

@@ -70,8 +70,11 @@ def test_describe_names_the_task_and_the_policy():
     assert {k: v for k, v in identity.items() if not k.startswith("task.")} == {
         "task": "Acrobot", "bodies": "rods", "horizon": 20, "observation_size": 6, "action_size": 1,
         "policy": "GRUPolicy", "policy_parameters": optim.flatten_policy(tiny_gru(task, width=8))[0].size}
-    assert identity["task.chain"] == "Chain" and identity["task.chain.mass"] == "float64[2] [2.5, 2.5]"
-    assert identity["task.chain.gear"] == "float64[1] [25.0]" and identity["task.chain.joints[1]"] == "revolute"
+    assert identity["task.chain"] == "Chain"
+    assert identity["task.chain.bodies[0].mass"] == identity["task.chain.bodies[1].mass"] == "float64[] [2.5]"
+    assert len([k for k in identity if k.startswith("task.chain.bodies[") and k.endswith("].mass")]) == 2
+    assert identity["task.chain.motors[0].gear"] == "float64[] [25.0]" and "task.chain.motors[1]" not in identity
+    assert identity["task.chain.bodies[1].joints[0]"] == "Hinge"  # the second link's joint is revolute
     assert (identity["task.dt"], identity["task.noise"], identity["task.substeps"]) == (0.01, 0.01, 1)
     assert identity["task.solver"] == "RK4" and identity["task.trig"] is True and identity["task.starts"] is None
     starts = np.linspace(0.0, 1.0, 40).reshape(10, 4)

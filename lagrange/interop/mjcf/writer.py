@@ -1,8 +1,7 @@
-"""Writing MJCF: a chain (or a spatial tree, :mod:`~lagrange.interop.mjcf.tree_writer`) as a model string that
-MuJoCo, MJX and Brax simulate exactly.
+"""Writing MJCF: any tree as a model string that MuJoCo, MJX and Brax simulate exactly, and that
+:func:`~lagrange.interop.mjcf.from_mjcf` reads back.
 
-:func:`to_mjcf` returns the model as an XML string; MuJoCo, MJX and Brax load it with their own
-readers::
+:func:`to_mjcf` returns the model as an XML string; MuJoCo, MJX and Brax load it with their own readers::
 
     import mujoco
 
@@ -11,35 +10,24 @@ readers::
 
     model = mujoco.MjModel.from_xml_string(to_mjcf(systems.acrobot(), timestep=0.01))
 
-Writing needs neither MuJoCo nor Brax. :func:`to_mjcf` writes one ``<body>`` per link, nested in its parent's (a
-link of the world in ``<worldbody>``). Our planar x-z conventions map onto MuJoCo's 3D frames as follows:
+Writing needs neither MuJoCo nor Brax. The tree is written body for body:
 
-- Every body frame is the link's frame: origin at the joint, local ``-z`` along the link
-  direction ``d(phi)`` and local ``+x`` along the normal ``e(phi)``. Body ``i`` sits at its ``attach`` point
-  ``(x, 0, z)`` in its parent's frame (default ``(0, 0, -length_parent)``), turned by the link's ``offset`` about
-  ``(0, -1, 0)``.
-- A revolute joint is a ``hinge`` about ``(0, -1, 0)`` (``(0, 1, 0)`` for ``sense=-1``): positive ``q`` turns ``d``
-  from ``(0, -1)`` towards ``+x``, as :func:`lagrange.kinematics.positions` does.
-- A prismatic joint is a ``slide`` along ``e(phi_{i-1} + axis)``: ``(cos a, 0, sin a)`` in its own
-  body's frame with ``a = axis - offset``.
-- Each body carries an explicit ``<inertial>`` (``inertiafromgeom="false"``): the link's mass
-  at ``(com_normal, 0, -com)`` and ``diaginertia="I I I"`` with ``I`` the planar moment about the centre
-  of mass. Every hinge turns about the body ``y`` axis, so angular velocities stay along ``y``
-  and only the ``y`` moment ever enters the dynamics; the other two are set equal to it only
-  because MuJoCo requires a positive-definite inertia that satisfies the triangle inequality.
-  MuJoCo also rejects a moving body whose mass or inertia is below ``1e-15``: a zero mass or
-  a zero moment is written as ``tiny`` (default ``1e-12``). The exported dynamics then differ
-  from the chain's by at most ``tiny`` times a squared lever arm, and not at all for a zero
-  moment on a body that cannot rotate (e.g. a cart below no revolute joint).
-- Joint ``damping``, ``armature``, ``stiffness`` and ``springref`` are the joint's own; each actuated joint gets one
-  ``<motor>`` with the link's ``gear``, its ``control_range`` as ``ctrlrange`` (limited only
-  where the link has one) and no force limits.
-- Geoms (capsules along each link, spheres for zero-length links) are for looking only:
-  ``contype="0" conaffinity="0"``, and they carry no mass because the inertials are explicit.
-- ``<custom><numeric name="matrix_inv_iterations" data="0"/></custom>`` makes Brax's
-  generalized pipeline solve with the exact mass matrix (its default approximates the inverse
-  by Newton-Schulz iterations), so Brax, MuJoCo and :class:`lagrange.SemiImplicitEuler` agree
-  step for step.
+- One ``<body>`` per body, nested in its parent's, at its ``pos`` and ``quat``; its joints in order (``hinge`` and
+  ``slide`` with their axis, anchor, ``ref``, damping, armature and spring; ``ball``; ``free``), named ``q{k}`` in the
+  tree's joint order; a ``<motor>`` per motor with its gear and ``ctrlrange`` (limited only where the motor has a
+  ``control_range``) and no force limits; the tree's gravity. A :class:`~lagrange.chain.Chain`'s bodies are its links
+  (:mod:`lagrange.chain` says how): body ``i`` named ``link{i}``, its hinge about ``(0, -sense, 0)``.
+- Each body carries an explicit ``<inertial>`` (``inertiafromgeom="false"``): the centre of mass, the mass and the
+  inertia (``diaginertia`` where it is diagonal, as a chain's ``diag(I, I, I)``, else ``fullinertia``). MuJoCo rejects
+  a moving body whose mass or principal inertia is below ``1e-15``: such a value is written as ``tiny`` (default
+  ``1e-12``), the only way the written model can differ from the tree (by at most ``tiny`` times a squared lever arm).
+- Geoms are for looking only (``contype="0" conaffinity="0"``, no mass: the inertials are explicit): a capsule from
+  each body's origin to its ``tip``, a sphere where the tip is at the origin; none for a body without a tip.
+- ``<custom><numeric name="matrix_inv_iterations" data="0"/></custom>`` makes Brax's generalized pipeline solve with
+  the exact mass matrix (its default approximates the inverse by Newton-Schulz iterations), so Brax, MuJoCo and
+  :class:`lagrange.SemiImplicitEuler` agree step for step.
+- The penalty laws of contact and joint limits have no MJCF form (MuJoCo's are constraints): a tree with one is
+  refused by name.
 """
 
 from __future__ import annotations
@@ -49,35 +37,33 @@ import math
 import jax
 import numpy as np
 
-from lagrange.chain import Chain
-from lagrange.interop.mjcf.tree_writer import tree_mjcf
-from lagrange.model.tree import Tree
+from lagrange.model.joints import Ball, Free, Hinge, Slide
+from lagrange.model.tree import WORLD, Tree
 
 INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
 """The MuJoCo integrators :func:`to_mjcf` accepts (Brax loads only ``"Euler"``)."""
 
+__all__ = ["INTEGRATORS", "to_mjcf"]
 
-def _num(x: float) -> str:
+
+def _num(x) -> str:
     """A float written so that MuJoCo reads back exactly the same double."""
     x = float(x)
     return "0" if x == 0.0 else repr(x)
 
 
-def _vec(*xs) -> str:
-    return " ".join(_num(x) for x in xs)
+def _vec(xs) -> str:
+    return " ".join(_num(x) for x in np.asarray(xs, float).reshape(-1))
 
 
-def _values(chain: Chain, name: str):
-    x = getattr(chain, name)
-    if x is None:
-        return None
+def _concrete(x, what: str):
     if isinstance(x, jax.core.Tracer):
-        raise TypeError(f"to_mjcf needs concrete parameters; Chain.{name} is traced (call it outside jit/grad)")
+        raise TypeError(f"to_mjcf needs concrete parameters; {what} is traced (call it outside jit/grad)")
     return np.asarray(x, dtype=float)
 
 
 def to_mjcf(
-    chain: Chain | Tree,
+    tree: Tree,
     timestep: float = 0.01,
     integrator: str = "Euler",
     name: str = "chain",
@@ -85,30 +71,31 @@ def to_mjcf(
     radius: float = 0.02,
     tiny: float = 1e-12,
 ) -> str:
-    """The chain or tree as an MJCF model string, for ``mujoco.MjModel.from_xml_string`` or ``brax.io.mjcf.loads``.
-
-    A :class:`~lagrange.model.tree.Tree` is written body for body (:mod:`~lagrange.interop.mjcf.tree_writer`), so that
-    :func:`~lagrange.interop.mjcf.from_mjcf` reads it back (``tree=True`` for a planar one); ``radius`` then has no
-    use (no geoms are written).
+    """The tree as an MJCF model string, for ``mujoco.MjModel.from_xml_string`` or ``brax.io.mjcf.loads`` (the module
+    docstring says how it is written).
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain` or :class:`~lagrange.model.tree.Tree` (concrete parameters, not
-        traced). timestep: MuJoCo's ``option/timestep`` [s], finite and > 0.
+        tree: the :class:`lagrange.Tree` (a :class:`~lagrange.chain.Chain` is one), concrete parameters (not traced).
+        timestep: MuJoCo's ``option/timestep`` [s], finite and > 0.
         integrator: one of ``"Euler"`` (MuJoCo's semi-implicit Euler, the one Brax loads and
-            :class:`lagrange.SemiImplicitEuler` reproduces), ``"RK4"``, ``"implicit"``,
-            ``"implicitfast"``.
+            :class:`lagrange.SemiImplicitEuler` reproduces), ``"RK4"``, ``"implicit"``, ``"implicitfast"``.
         name: the model's name (letters, digits, ``_-.``).
         radius: radius [m] of the visual capsules, > 0; it has no effect on the dynamics.
-        tiny: the value written for a zero mass or zero moment of inertia, which MuJoCo
+        tiny: the value written for a zero mass or principal moment of inertia of a moving body, which MuJoCo
             rejects; must be in ``(1e-15, 1e-6]``.
 
     Returns:
-        The MJCF XML as a string. Joint ``i`` is named ``q{i}``, body ``i`` ``link{i}``,
-        actuator ``k`` ``u{k}`` (in the order of ``chain.actuated``), so MuJoCo's ``qpos``,
-        ``qvel`` and ``ctrl`` line up with ``q``, ``qd`` and ``u``.
+        The MJCF XML as a string. Joint ``k`` is named ``q{k}``, actuator ``k`` ``u{k}`` (the motors' order), so
+        MuJoCo's ``qpos``, ``qvel`` and ``ctrl`` line up with ``q``, ``qd`` and ``u``.
+
+    Raises:
+        TypeError: for a model that is not a tree, traced parameters, a timestep that is not a number.
+        ValueError: for a bad timestep, integrator, name, radius or tiny.
+        NotImplementedError: for a tree with a contact or limit law, or a ball's or free joint's spring whose rest
+            pose is not the body as written.
     """
-    if not isinstance(chain, (Chain, Tree)):
-        raise TypeError(f"chain must be a lagrange.chain.Chain or a lagrange.Tree, got {type(chain).__name__}")
+    if not isinstance(tree, Tree):
+        raise TypeError(f"tree must be a lagrange.Tree (a lagrange.chain.Chain is one), got {type(tree).__name__}")
     if isinstance(timestep, bool) or not isinstance(timestep, (int, float, np.floating, np.integer)):
         raise TypeError(f"timestep must be a positive real number of seconds, got {timestep!r}")
     if not (math.isfinite(float(timestep)) and float(timestep) > 0):
@@ -121,77 +108,95 @@ def to_mjcf(
         raise ValueError(f"radius must be a finite number > 0 metres, got {radius!r}")
     if isinstance(tiny, bool) or not (isinstance(tiny, (int, float)) and 1e-15 < tiny <= 1e-6):
         raise ValueError(f"tiny must be a number in (1e-15, 1e-6], got {tiny!r}")
-    if isinstance(chain, Tree):
-        return tree_mjcf(chain, float(timestep), integrator, name, tiny)
+    for law, what in ((tree.contact, "contact"), (tree.limits, "limits")):
+        if law is not None:
+            raise NotImplementedError(f"to_mjcf: the tree has a {what} law ({type(law).__name__}), which MJCF cannot "
+                                      "state (MuJoCo's contact and limits are constraints, not penalties); write "
+                                      f"the tree without it: {type(tree).__name__}(..., {what}=None) and no "
+                                      f"{'contact points' if what == 'contact' else 'joint ranges'}")
+    gravity = _concrete(tree.gravity, f"{type(tree).__name__}.gravity")
+    lines = [f'<mujoco model="{name}">',
+             '  <compiler angle="radian" inertiafromgeom="false" autolimits="false"/>',
+             f'  <option timestep="{_num(timestep)}" integrator="{integrator}" gravity="{_vec(gravity)}"/>',
+             "  <custom>",
+             '    <numeric name="matrix_inv_iterations" data="0"/>',
+             "  </custom>",
+             "  <worldbody>"]
+    first = np.cumsum([0] + [len(b.joints) for b in tree.bodies])
+    children = {i: [c for c, p in enumerate(tree.parents) if p == i] for i in (WORLD, *range(len(tree.bodies)))}
 
-    mass = _values(chain, "mass")
-    length = _values(chain, "length")
-    com = _values(chain, "com")
-    inertia = _values(chain, "inertia")
-    damping = _values(chain, "damping")
-    armature = _values(chain, "armature")
-    gear = _values(chain, "gear")
-    gravity = _values(chain, "gravity")
-    g = 0.0 if gravity is None else float(gravity)
-
-    lines = [
-        f'<mujoco model="{name}">',
-        '  <compiler angle="radian" inertiafromgeom="false" autolimits="false"/>',
-        f'  <option timestep="{_num(timestep)}" integrator="{integrator}" gravity="{_vec(0, 0, -g)}"/>',
-        "  <custom>",
-        '    <numeric name="matrix_inv_iterations" data="0"/>',
-        "  </custom>",
-        "  <worldbody>",
-    ]
-    com_normal = _values(chain, "com_normal")
-    attach = dict(zip(chain.attached, [] if chain.attach is None else _values(chain, "attach")))
-    stiffness, springref = _values(chain, "stiffness"), _values(chain, "springref")
-
-    def body(i: int, indent: str) -> None:
-        p = chain.parents[i]
-        if i in attach:  # (x, z) in the parent's frame (the world's for a link of the world)
-            pos = _vec(attach[i][0], 0, attach[i][1])
-        else:
-            pos = _vec(0, 0, -length[p]) if p >= 0 else _vec(0, 0, 0)
-        offset = chain.offsets[i]
-        turn = f' axisangle="{_vec(0, -1, 0, offset)}"' if offset != 0.0 else ""
-        lines.append(f'{indent}<body name="link{i}" pos="{pos}"{turn}>')
+    def body(b: int, indent: str) -> None:
+        bd = tree.bodies[b]
+        label = bd.name if bd.name else f"body {b}"
+        named = f' name="{bd.name}"' if bd.name else ""
+        turn = "" if bd.quat == (1.0, 0.0, 0.0, 0.0) else f' quat="{_vec(bd.quat)}"'
+        lines.append(f'{indent}<body{named} pos="{_vec(_concrete(bd.pos, f"{label}.pos"))}"{turn}>')
         inner = indent + "  "
-        if chain.joints[i] == "revolute":
-            kind, axis = "hinge", _vec(0, -chain.senses[i], 0)
-        else:  # the axis in this body's frame, turned by the offset against the parent's
-            a = chain.axes[i] - offset
-            kind, axis = "slide", _vec(math.cos(a), 0, math.sin(a))
-        attrs = f'name="q{i}" type="{kind}" pos="0 0 0" axis="{axis}" limited="false"'
-        attrs += f' damping="{_num(0.0 if damping is None else damping[i])}"'
-        attrs += f' armature="{_num(0.0 if armature is None else armature[i])}"'
-        if stiffness is not None and stiffness[i] != 0:
-            attrs += f' stiffness="{_num(stiffness[i])}" springref="{_num(springref[i])}"'
-        lines.append(f"{inner}<joint {attrs}/>")
-        m = mass[i] if mass[i] > 0 else tiny
-        moment = inertia[i] if inertia[i] > 0 else tiny
-        lines.append(
-            f'{inner}<inertial pos="{_vec(0.0 if com_normal is None else com_normal[i], 0, -com[i])}" mass="{_num(m)}" '
-            f'diaginertia="{_vec(moment, moment, moment)}"/>'
-        )
-        if length[i] > 0:
-            shape = f'type="capsule" fromto="{_vec(0, 0, 0, 0, 0, -length[i])}" size="{_num(radius)}"'
-        else:
-            shape = f'type="sphere" size="{_num(2 * radius)}"'
-        lines.append(f'{inner}<geom name="geom{i}" {shape} contype="0" conaffinity="0"/>')
-        for c in chain.children(i):
+        for k, j in enumerate(bd.joints):
+            lines.append(inner + _joint(tree, int(first[b]) + k, j, b))
+        lines.extend(inner + line for line in _inertial(bd, label, tiny))
+        if bd.tip is not None:
+            tip = _concrete(bd.tip, f"{label}.tip")
+            shape = (f'type="capsule" fromto="{_vec(np.concatenate([np.zeros(3), tip]))}" size="{_num(radius)}"'
+                     if np.any(tip != 0) else f'type="sphere" size="{_num(2 * radius)}"')
+            lines.append(f'{inner}<geom name="geom{b}" {shape} contype="0" conaffinity="0"/>')
+        for c in children[b]:
             body(c, inner)
         lines.append(f"{indent}</body>")
 
-    for root in chain.children(-1):
+    for root in children[WORLD]:
         body(root, "    ")
     lines.append("  </worldbody>")
-    if chain.actuated:
+    if tree.motors:
         lines.append("  <actuator>")
-        for k, j in enumerate(chain.actuated):
-            r = None if chain.control_ranges is None else chain.control_ranges[k]
-            limit = 'ctrllimited="false"' if r is None else f'ctrllimited="true" ctrlrange="{_vec(*r)}"'
-            lines.append(f'    <motor name="u{k}" joint="q{j}" gear="{_num(gear[k])}" {limit} forcelimited="false"/>')
+        for k, mo in enumerate(tree.motors):
+            r = mo.control_range
+            limit = 'ctrllimited="false"' if r is None else f'ctrllimited="true" ctrlrange="{_vec(r)}"'
+            lines.append(f'    <motor name="u{k}" joint="q{mo.joint}" gear="{_num(_concrete(mo.gear, "Motor.gear"))}" '
+                         f'{limit} forcelimited="false"/>')
         lines.append("  </actuator>")
     lines.append("</mujoco>")
     return "\n".join(lines) + "\n"
+
+
+def _inertial(bd, label: str, tiny: float) -> list[str]:
+    """The body's ``<inertial>`` (none for a massless body without joints): ``diaginertia`` for a diagonal inertia,
+    ``fullinertia`` otherwise; a moving body's zero mass or principal moment written as ``tiny``."""
+    mass = float(_concrete(bd.mass, f"{label}.mass"))
+    J = _concrete(bd.inertia, f"{label}.inertia")
+    if not (mass > 0 or np.any(J != 0) or bd.joints):
+        return []
+    com = _vec(_concrete(bd.com, f"{label}.com"))
+    if np.all(J == np.diag(np.diag(J))):
+        moments = np.where(np.diag(J) > 0, np.diag(J), tiny) if np.min(np.diag(J)) < tiny else np.diag(J)
+        inertia = f'diaginertia="{_vec(moments)}"'
+    else:
+        if np.min(np.linalg.eigvalsh(J)) < tiny:  # MuJoCo's lower bound on a moving body's principal inertia
+            J = J + tiny * np.eye(3)
+        inertia = f'fullinertia="{_vec((J[0, 0], J[1, 1], J[2, 2], J[0, 1], J[0, 2], J[1, 2]))}"'
+    return [f'<inertial pos="{com}" mass="{_num(mass if mass > 0 else tiny)}" {inertia}/>']
+
+
+def _joint(tree: Tree, k: int, j, b: int) -> str:
+    common = (f' damping="{_num(_concrete(j.damping, f"joint {k}.damping"))}"'
+              f' armature="{_num(_concrete(j.armature, f"joint {k}.armature"))}"')
+    stiffness = float(_concrete(j.stiffness, f"joint {k}.stiffness"))
+    if isinstance(j, (Hinge, Slide)):
+        kind = "hinge" if isinstance(j, Hinge) else "slide"
+        spring = (f' stiffness="{_num(stiffness)}" springref="{_num(_concrete(j.springref, f"joint {k}.springref"))}"'
+                  if stiffness else "")
+        return (f'<joint name="q{k}" type="{kind}" axis="{_vec(j.axis)}" pos="{_vec(j.pos)}"'
+                f' ref="{_num(j.ref)}" limited="false"{common}{spring}/>')
+    if stiffness:  # MJCF has no rest pose for a ball's or a free joint's spring but the body as written
+        rest = (np.array([1.0, 0, 0, 0]) if isinstance(j, Ball) else
+                np.concatenate([_concrete(tree.bodies[b].pos, "pos"), np.asarray(tree.bodies[b].quat)]))
+        if j.springref is not None and not np.allclose(_concrete(j.springref, f"joint {k}.springref"), rest,
+                                                       rtol=0, atol=1e-15):
+            raise NotImplementedError(
+                f"to_mjcf: joint {k} ({type(j).__name__}) has a spring whose rest pose is not the body as written; "
+                "MJCF cannot state one (set springref to the body's pose, or stiffness to 0)")
+        common += f' stiffness="{_num(stiffness)}"'
+    if isinstance(j, Ball):
+        return f'<joint name="q{k}" type="ball" pos="{_vec(j.pos)}" limited="false"{common}/>'
+    assert isinstance(j, Free)
+    return f'<joint name="q{k}" type="free" limited="false"{common}/>'

@@ -17,18 +17,18 @@ import numpy as np
 
 from lagrange.math import scalar as s
 from lagrange.forces import clamp_controls
-from lagrange.chain import Chain
+from lagrange.planar.model import PlanarChain
 from lagrange.planar.recursive.contact import contact_wrenches
 from lagrange.planar.recursive.kinematics import LinkKinematics
 from lagrange.planar.recursive.rnea import passive_force
 from lagrange.planar.recursive.tree import arrays, links_last, param, prepare, split_links
 
 
-def actuation(chain: Chain, u, batch, dtype):
+def actuation(chain: PlanarChain, u, batch, dtype):
     """The actuation's generalized forces ``B u``, links first.
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`.
+        chain: the :class:`~lagrange.planar.model.PlanarChain`.
         u: controls, shape ``(*batch, m)``, or ``None``.
         batch: the batch shape.
         dtype: the float type.
@@ -48,7 +48,7 @@ def actuation(chain: Chain, u, batch, dtype):
     return jnp.tensordot(jnp.asarray(select, dtype), gu, axes=1)
 
 
-def forward_dynamics(chain: Chain, q, qd, u=None, implicit_damping_dt=None, *, pivots: bool = False):
+def forward_dynamics(chain: PlanarChain, q, qd, u=None, implicit_damping_dt=None, *, pivots: bool = False):
     """Joint accelerations ``qdd = M^-1 (B u - bias)`` by the articulated-body algorithm, in O(n).
 
     Arguments and result as :func:`lagrange.dynamics.forward_dynamics`'s, for a chain that function has prepared

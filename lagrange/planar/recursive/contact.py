@@ -11,16 +11,16 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from lagrange.chain import Chain
+from lagrange.planar.model import PlanarChain
 from lagrange.planar.recursive.kinematics import LinkKinematics
 from lagrange.planar.recursive.tree import param
 
 
-def contact_spots(chain: Chain, k: LinkKinematics):
+def contact_spots(chain: PlanarChain, k: LinkKinematics):
     """Where each contact point's lowest spot is.
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`.
+        chain: the :class:`~lagrange.planar.model.PlanarChain`.
         k: the links' kinematics (:class:`~lagrange.planar.recursive.kinematics.LinkKinematics`).
 
     Returns:
@@ -43,11 +43,11 @@ def contact_spots(chain: Chain, k: LinkKinematics):
     return idx, px[idx] + rx, pz[idx] + rz, rx, rz
 
 
-def contact_wrenches(chain: Chain, k: LinkKinematics):
+def contact_wrenches(chain: PlanarChain, k: LinkKinematics):
     """The contact forces on each link, as a spatial force about its joint.
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`.
+        chain: the :class:`~lagrange.planar.model.PlanarChain`.
         k: the links' kinematics (:class:`~lagrange.planar.recursive.kinematics.LinkKinematics` with velocities).
 
     Returns:
@@ -66,11 +66,11 @@ def contact_wrenches(chain: Chain, k: LinkKinematics):
     return tuple(zeros.at[idx].add(v) for v in (t, ft, fn))
 
 
-def contact_energy(chain: Chain, k: LinkKinematics):
+def contact_energy(chain: PlanarChain, k: LinkKinematics):
     """The contact springs' potential energy.
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`.
+        chain: the :class:`~lagrange.planar.model.PlanarChain`.
         k: the links' kinematics (:class:`~lagrange.planar.recursive.kinematics.LinkKinematics`).
 
     Returns:
@@ -82,11 +82,11 @@ def contact_energy(chain: Chain, k: LinkKinematics):
     return jnp.sum(chain.contact.energy(chain.contact.ground - sz), axis=0)
 
 
-def limit_torques(chain: Chain, q, qd):
+def limit_torques(chain: PlanarChain, q, qd):
     """The limits' generalized forces.
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`.
+        chain: the :class:`~lagrange.planar.model.PlanarChain`.
         q: joint coordinates [rad or m], links first ``(n, *batch)``.
         qd: joint velocities [rad/s or m/s], links first ``(n, *batch)``.
 
@@ -102,11 +102,11 @@ def limit_torques(chain: Chain, q, qd):
     return jnp.zeros(q.shape, tau.dtype).at[idx].add(tau)
 
 
-def limit_energy(chain: Chain, q):
+def limit_energy(chain: PlanarChain, q):
     """The limit springs' potential energy.
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`.
+        chain: the :class:`~lagrange.planar.model.PlanarChain`.
         q: joint coordinates [rad or m], links first ``(n, *batch)``.
 
     Returns:

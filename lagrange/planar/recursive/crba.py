@@ -11,12 +11,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from lagrange.math import scalar as s
-from lagrange.chain import Chain
+from lagrange.planar.model import PlanarChain
 from lagrange.planar.recursive.kinematics import LinkKinematics
 from lagrange.planar.recursive.tree import next_link, param, prepare, rcumsum
 
 
-def mass_matrix(chain: Chain, q):
+def mass_matrix(chain: PlanarChain, q):
     """The mass matrix ``M(q)`` by the composite-rigid-body algorithm, in O(n^2).
 
     Arguments and result as :func:`lagrange.dynamics.mass_matrix`'s, for a chain that function has prepared (its

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from lagrange.chain import Chain
+from lagrange.planar.model import PlanarChain
 from lagrange.planar.recursive.contact import contact_energy, limit_energy
 from lagrange.planar.recursive.kinematics import LinkKinematics
 from lagrange.planar.recursive.tree import param, prepare
 
 
-def energy(chain: Chain, q, qd):
+def energy(chain: PlanarChain, q, qd):
     """The kinetic and potential energy, from the links' spatial velocities and inertias.
 
     Arguments and result as :func:`lagrange.dynamics.energy`'s, for a chain that function has prepared (its

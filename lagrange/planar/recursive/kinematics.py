@@ -13,8 +13,7 @@ import numpy as np
 from lagrange.math import scalar as s
 from lagrange.math.scalar import cos_sin
 from lagrange.math.sincos import sincos
-from lagrange.chain import Chain
-from lagrange.chain import WORLD
+from lagrange.planar.model import WORLD, PlanarChain
 from lagrange.planar.recursive.tree import Topology, arrays, momentum, param, per_link
 
 
@@ -36,7 +35,7 @@ class LinkKinematics:
     (``tests/lagrange/test_recursive.py``).
     """
 
-    def __init__(self, chain: Chain, q, qd, nb: int, topology: Topology | None = None):
+    def __init__(self, chain: PlanarChain, q, qd, nb: int, topology: Topology | None = None):
         dtype = q.dtype
         n = chain.n
         self.topology = Topology(chain) if topology is None else topology
@@ -145,7 +144,7 @@ class LinkKinematics:
         return momentum(self.J, self.hx, self.hz, self.m, w, vx, vz)
 
 
-def _parent_offsets_and_lengths(chain: Chain, off):
+def _parent_offsets_and_lengths(chain: PlanarChain, off):
     """Each link's parent's frame offset and length (0 and 0 for a link of the world), on a tree."""
     parents = np.asarray(chain.parents)
     of_world = parents == WORLD
@@ -155,7 +154,7 @@ def _parent_offsets_and_lengths(chain: Chain, off):
     return poff, xp.where(of_world, 0.0, length[np.maximum(parents, 0)])
 
 
-def _attach_coefficients(chain: Chain, lp):
+def _attach_coefficients(chain: PlanarChain, lp):
     """``(c_d, c_e)`` per link: the joint at ``c_d d + c_e e`` of the parent's frame, ``(l_parent, 0)`` by default and
     ``(-z, x)`` for an ``attach`` point ``(x, z)``."""
     idx = np.asarray(chain.attached)

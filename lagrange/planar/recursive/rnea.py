@@ -12,17 +12,17 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from lagrange.math import scalar as s
-from lagrange.chain import Chain
+from lagrange.planar.model import PlanarChain
 from lagrange.planar.recursive.contact import contact_wrenches, limit_torques
 from lagrange.planar.recursive.kinematics import LinkKinematics
 from lagrange.planar.recursive.tree import links_first, links_last, param, prepare
 
 
-def damping_force(chain: Chain, qd):
+def damping_force(chain: PlanarChain, qd):
     """The joints' damping forces.
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`.
+        chain: the :class:`~lagrange.planar.model.PlanarChain`.
         qd: joint velocities [rad/s or m/s], links first ``(n, *batch)``.
 
     Returns:
@@ -31,11 +31,11 @@ def damping_force(chain: Chain, qd):
     return None if chain.damping is None else param(chain.damping, qd.ndim - 1) * qd
 
 
-def spring_force(chain: Chain, q):
+def spring_force(chain: PlanarChain, q):
     """The joint springs' forces.
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`.
+        chain: the :class:`~lagrange.planar.model.PlanarChain`.
         q: joint coordinates [rad or m], links first ``(n, *batch)``.
 
     Returns:
@@ -47,11 +47,11 @@ def spring_force(chain: Chain, q):
     return param(chain.stiffness, nb) * (q - param(chain.springref, nb))
 
 
-def passive_force(chain: Chain, q, qd):
+def passive_force(chain: PlanarChain, q, qd):
     """The joints' dampers, springs and limits, as one generalized force on the bias side.
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`.
+        chain: the :class:`~lagrange.planar.model.PlanarChain`.
         q: joint coordinates [rad or m], links first ``(n, *batch)``.
         qd: joint velocities [rad/s or m/s], links first ``(n, *batch)``.
 
@@ -68,7 +68,7 @@ def passive_force(chain: Chain, q, qd):
     return out
 
 
-def _rnea(chain: Chain, k: LinkKinematics, qdd, gravity: bool):
+def _rnea(chain: PlanarChain, k: LinkKinematics, qdd, gravity: bool):
     """``S_i . (sum_{k in i's subtree} X^T f_k)`` for ``f = I a + v x* I v``, shape (n, *batch)."""
     g = chain.gravity if (gravity and chain.gravity is not None) else 0.0
     tree = k.topology
@@ -99,7 +99,7 @@ def _rnea(chain: Chain, k: LinkKinematics, qdd, gravity: bool):
     return s.add(s.add(s.mul(S[0], t), s.mul(S[1], Fx)), s.mul(S[2], Fz))
 
 
-def bias_forces(chain: Chain, q, qd):
+def bias_forces(chain: PlanarChain, q, qd):
     """The bias forces by RNEA at ``qdd = 0``, in O(n).
 
     Arguments and result as :func:`lagrange.dynamics.bias_forces`'s, for a chain that function has prepared (its
@@ -114,7 +114,7 @@ def bias_forces(chain: Chain, q, qd):
     return links_last(f)
 
 
-def gravity_forces(chain: Chain, q):
+def gravity_forces(chain: PlanarChain, q):
     """The generalized gravity forces by RNEA at rest, in O(n).
 
     Arguments and result as :func:`lagrange.dynamics.gravity_forces`'s, for a chain that function has prepared (its
@@ -126,11 +126,11 @@ def gravity_forces(chain: Chain, q):
     return links_last(_rnea(chain, LinkKinematics(chain, q, None, len(batch)), None, gravity=True))
 
 
-def inverse_dynamics(chain: Chain, q, qd, qdd):
+def inverse_dynamics(chain: PlanarChain, q, qd, qdd):
     """The generalized forces that produce ``qdd``, by RNEA, in O(n).
 
     Args:
-        chain: the :class:`~lagrange.chain.Chain`, its concrete parameters as NumPy arrays (``lagrange.dynamics``
+        chain: the :class:`~lagrange.planar.model.PlanarChain`, its concrete parameters as NumPy arrays (the lowering
             folds them).
         q: joint coordinates [rad or m], shape ``(*batch, n)``.
         qd: joint velocities [rad/s or m/s], shape ``(*batch, n)``.

@@ -13,7 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from lagrange.math import scalar as s
-from lagrange.chain import Chain
+from lagrange.planar.model import PlanarChain
 
 
 def links_first(x, batch):
@@ -61,7 +61,7 @@ def batch_shape(*xs):
     return jnp.broadcast_shapes(*(jnp.shape(x)[:-1] for x in xs if x is not None))
 
 
-def prepare(chain: Chain, q, qd, *extra):
+def prepare(chain: PlanarChain, q, qd, *extra):
     """``(batch, dtype, q, qd)`` with ``q`` and ``qd`` in the links-first layout ``(n, *batch)`` of the common dtype
     (``qd`` may be ``None``); ``extra`` arrays only take part in the batch shape and the dtype."""
     batch = batch_shape(q, qd, *extra)
@@ -131,7 +131,7 @@ class Topology:
     branched tree costs about what a chain of as many links costs.
     """
 
-    def __init__(self, chain: Chain):
+    def __init__(self, chain: PlanarChain):
         self.chain = chain
         self.serial = chain.serial
         n = chain.n

@@ -16,6 +16,7 @@ import pytest
 import lagrange as lg
 from lagrange.chain import Chain, Link
 from lagrange.interop.mjcf import to_mjcf
+from lagrange.planar.lower import lower as planar
 from tests.helpers import CHAINS, mujoco_model, seeded_chain
 
 
@@ -28,7 +29,7 @@ def test_export_structure():
     assert (opt.get("timestep"), opt.get("integrator")) == ("0.002", "RK4")
     assert root.find("custom/numeric").attrib == {"name": "matrix_inv_iterations", "data": "0"}
     joints = root.findall(".//joint")
-    assert [j.get("type") for j in joints] == ["hinge" if k == "revolute" else "slide" for k in chain.joints]
+    assert [j.get("type") for j in joints] == ["hinge" if k == "revolute" else "slide" for k in planar(chain).joints]
     for j in joints:
         if j.get("type") == "hinge":
             assert np.array_equal(np.fromstring(j.get("axis"), sep=" "), [0, -1, 0])
@@ -44,16 +45,17 @@ def test_export_structure():
 def test_model_parameters_round_trip(chain, dt):
     """MuJoCo's compiled model carries exactly the chain's masses, inertias, damping, armature, gears."""
     model, _ = mujoco_model(chain, dt)
+    lowered = planar(chain)
     np.testing.assert_array_equal(model.body_mass[1:], np.asarray(chain.mass))
-    np.testing.assert_array_equal(model.body_inertia[1:, 1], np.where(chain.inertia > 0, chain.inertia, 1e-12))
-    np.testing.assert_array_equal(model.body_ipos[1:, 2], -np.asarray(chain.com))
-    damping = np.zeros(chain.n) if chain.damping is None else np.asarray(chain.damping)
-    armature = np.zeros(chain.n) if chain.armature is None else np.asarray(chain.armature)
+    np.testing.assert_array_equal(model.body_inertia[1:, 1], np.where(lowered.inertia > 0, lowered.inertia, 1e-12))
+    np.testing.assert_array_equal(model.body_ipos[1:, 2], -np.asarray(lowered.com))
+    damping = np.zeros(chain.nv) if lowered.damping is None else np.asarray(lowered.damping)
+    armature = np.zeros(chain.nv) if lowered.armature is None else np.asarray(lowered.armature)
     np.testing.assert_array_equal(model.dof_damping, damping)
     np.testing.assert_array_equal(model.dof_armature, armature)
     np.testing.assert_array_equal(model.actuator_gear[:, 0], np.asarray(chain.gear))
     np.testing.assert_array_equal(model.actuator_trnid[:, 0], chain.actuated)
-    assert model.opt.timestep == dt and model.opt.gravity[2] == -float(chain.gravity)
+    assert model.opt.timestep == dt and model.opt.gravity[2] == -float(lowered.gravity)
 
 
 def test_positive_hinge_angle_swings_towards_plus_x():

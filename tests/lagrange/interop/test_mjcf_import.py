@@ -22,6 +22,7 @@ import pytest
 import lagrange as lg
 from lagrange.interop.mjcf import from_mjcf, mujoco_rollout, solver_of, to_mjcf
 from lagrange.model.tree import Tree
+from lagrange.planar.lower import lower as planar
 from tests.helpers import mujoco_terms, rel
 
 EXACT = 1e-10
@@ -164,7 +165,7 @@ def _check_rollout(model, chain, seed=1, steps=30):
 @pytest.mark.parametrize("name", list(MODELS))
 def test_suite_models_match_mujoco(name):
     model, chain = _load(MODELS[name], limits="ignore")
-    assert chain.n == model.nq == model.nv and chain.m == model.nu
+    assert chain.nv == model.nq == model.nv and chain.m == model.nu
     _check_terms(model, chain)
     _check_rollout(model, chain)
 
@@ -182,8 +183,8 @@ def test_trees_match_mujoco_in_free_flight(name):
     """M, bias and qacc to 1e-10 at random states (joints over 0.9 of their range, the root anywhere within pi) and
     at states five times as far and as fast; 30-step rollouts of the model's own integrator to 1e-9."""
     model, chain = _free_flight(TREES[name])
-    assert chain.n == model.nq == model.nv and chain.m == model.nu
-    assert not chain.serial or name.endswith("hopper")  # the cheetahs, walkers and the reacher branch
+    assert chain.nv == model.nq == model.nv and chain.m == model.nu
+    assert not planar(chain).serial or name.endswith("hopper")  # the cheetahs, walkers and the reacher branch
     _check_terms(model, chain, scales=(1.0, 5.0))
     _check_rollout(model, chain)
 
@@ -203,12 +204,13 @@ def test_tree_structure_is_mujoco_s():
     its springs are MuJoCo's; the hopper's root hinge turns the other way round to its legs (sense -1 on the legs);
     the reacher's target hangs from the world beside the arm."""
     _, cheetah = _free_flight(TREES["gymnasium/half_cheetah"])
-    assert cheetah.parents == (-1, 0, 1, 2, 3, 4, 2, 6, 7) and cheetah.joints[:3] == ("prismatic",) * 2 + ("revolute",)
-    assert cheetah.sprung == tuple(range(3, 9)) and np.allclose(cheetah.stiffness[3:], [240, 180, 120, 180, 120, 60])
+    lowered = planar(cheetah)
+    assert cheetah.parents == (-1, 0, 1, 2, 3, 4, 2, 6, 7) and lowered.joints[:3] == ("prismatic",) * 2 + ("revolute",)
+    assert lowered.sprung == tuple(range(3, 9)) and np.allclose(lowered.stiffness[3:], [240, 180, 120, 180, 120, 60])
     _, hopper = _free_flight(TREES["gymnasium/hopper"])
-    assert hopper.senses == (1, 1, 1, -1, -1, -1)
+    assert planar(hopper).senses == (1, 1, 1, -1, -1, -1)
     _, reacher = _free_flight(TREES["gymnasium/reacher"])
-    assert reacher.parents == (-1, 0, -1, 2) and reacher.attached == (2,)
+    assert reacher.parents == (-1, 0, -1, 2) and planar(reacher).attached == (2,)
 
 
 @pytest.mark.parametrize("name", ["gymnasium/half_cheetah", "gymnasium/reacher", "gymnasium/hopper"])
@@ -220,17 +222,20 @@ def test_trees_round_trip_through_to_mjcf(name):
         for a, b in zip(mujoco_terms(again, q[k], qd[k], u[k]), mujoco_terms(model, q[k], qd[k], u[k])):
             assert rel(a, b) <= EXACT
     same = from_mjcf(to_mjcf(chain))
-    assert same.parents == chain.parents and same.senses == chain.senses and same.sprung == chain.sprung
+    lowered, lowered_same = planar(chain), planar(same)
+    assert same.parents == chain.parents
+    assert lowered_same.senses == lowered.senses and lowered_same.sprung == lowered.sprung
     both = eqx.filter_jit(lambda a, b, q: (lg.mass_matrix(a, q), lg.mass_matrix(b, q)))  # one compiled program
     assert rel(*both(same, chain, jnp.asarray(q))) <= EXACT
 
 
 def test_kitchen_sink_matches_mujoco():
     model, chain = _load(KITCHEN_SINK)
-    assert chain.joints == ("prismatic", "revolute", "prismatic", "revolute")
-    assert chain.com_normal is not None and any(o != 0 for o in chain.offsets)
-    assert chain.armature is not None and chain.control_ranges == ((-1.0, 2.0), None, None)
-    assert np.isclose(float(chain.gravity), np.hypot(0.7, 9.3))  # the plane is x-z: the y part does no work
+    lowered = planar(chain)
+    assert lowered.joints == ("prismatic", "revolute", "prismatic", "revolute")
+    assert lowered.com_normal is not None and any(o != 0 for o in lowered.offsets)
+    assert lowered.armature is not None and lowered.control_ranges == ((-1.0, 2.0), None, None)
+    assert np.isclose(float(lowered.gravity), np.hypot(0.7, 9.3))  # the plane is x-z: the y part does no work
     assert chain.actuated == (0, 1, 3) and np.allclose(chain.gear, [5.0, 3.0, 1.5])
     _check_terms(model, chain)
     _check_rollout(model, chain)

@@ -87,6 +87,6 @@ def test_the_task_and_actor_are_taken_as_given():
     assert tuple(layer.out_features for layer in state.actor.mu.hidden) == (8, 4)
     assert bool(jnp.all(state.actor.log_std == -0.5)) and state.actor.log_std.shape == (task.action_size,)
     assert not np.array_equal(state.actor.mu.out.weight, actor.mu.out.weight)  # fresh weights from the key
-    assert state.critic.net.hidden[0].out_features == 6 and state.env_state.q.shape == (4, task.chain.n)
+    assert state.critic.net.hidden[0].out_features == 6 and state.env_state.q.shape == (4, task.chain.nq)
     with pytest.raises(TypeError, match="SHAC trains a stochastic policies.Actor, got GRUPolicy"):
         cfg.make_trainer(task, GRUPolicy.for_task(task))

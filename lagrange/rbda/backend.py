@@ -1,0 +1,80 @@
+"""The general backend: any tree's equations by the rigid-body algorithms of :mod:`lagrange.rbda` (RNEA, CRBA and a
+Cholesky solve), its coordinates on the joints' manifold (quaternions by the exponential map)."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import jax.numpy as jnp
+
+from lagrange import rbda
+from lagrange.backend import AbstractBackend
+from lagrange.model.tree import Tree
+from lagrange.rbda.forces import actuation, passive, per_dof
+
+__all__ = ["General"]
+
+
+def _arrays(*xs):
+    return tuple(None if x is None else jnp.asarray(x) for x in xs)
+
+
+class General(AbstractBackend):
+    """A tree and the general rigid-body algorithms (:mod:`lagrange.rbda`).
+
+    Attributes:
+        tree: the tree, its concrete parameters NumPy arrays.
+    """
+
+    tree: Tree
+    euclidean: ClassVar[bool] = False
+
+    @property
+    def nq(self) -> int:
+        return self.tree.nq
+
+    @property
+    def nv(self) -> int:
+        return self.tree.nv
+
+    @property
+    def damping(self):
+        return per_dof(self.tree, "damping")
+
+    def mass_matrix(self, q):
+        return rbda.mass_matrix(self.tree, *_arrays(q))
+
+    def bias_forces(self, q, qd):
+        return rbda.bias_forces(self.tree, *_arrays(q, qd))
+
+    def gravity_forces(self, q):
+        return rbda.gravity_forces(self.tree, *_arrays(q))
+
+    def forward_dynamics(self, q, qd, u=None, implicit_damping_dt=None, *, pivots: bool = False):
+        return rbda.forward_dynamics(self.tree, *_arrays(q, qd, u), implicit_damping_dt=implicit_damping_dt,
+                                     pivots=pivots)
+
+    def inverse_dynamics(self, q, qd, qdd):
+        return rbda.inverse_dynamics(self.tree, *_arrays(q, qd, qdd))
+
+    def energy(self, q, qd):
+        return rbda.energy(self.tree, *_arrays(q, qd))
+
+    def actuation(self, u):
+        return actuation(self.tree, u)
+
+    def spring_forces(self, q):
+        springs = passive(self.tree, q, None)
+        return None if springs is None else -springs
+
+    def move(self, q, v, h):
+        return rbda.integrate_positions(self.tree, q, v, h)
+
+    def rate(self, q, v):
+        return rbda.position_derivative(self.tree, q, v)
+
+    def dexpinv(self, theta, v):
+        return rbda.dexpinv(self.tree, theta, v)
+
+    def normalize(self, q):
+        return rbda.normalize_quaternions(self.tree, q)
