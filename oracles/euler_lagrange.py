@@ -6,8 +6,8 @@ This is the textbook derivation a reader can verify line by line: dense forward 
 :mod:`lagrange.dynamics` except the :class:`~lagrange.chain.Chain` parameters, and is an order of
 magnitude slower; an oracle, not for loops.
 
-``tests/lagrange/test_dynamics.py``, ``test_recursive.py`` and ``test_stability.py`` check ``lagrange`` against it;
-``benchmarks/derivation_overhead.py`` times it as the "naive autodiff" derivation that ``lagrange`` replaces. All
+``tests/lagrange/test_dynamics.py``, ``planar/test_recursive.py`` and ``test_stability.py`` check ``lagrange``
+against it; ``benchmarks/derivation_overhead.py`` times it as the "naive autodiff" derivation that ``lagrange`` replaces. All
 import it as ``oracles.euler_lagrange`` (from the repository root).
 """
 

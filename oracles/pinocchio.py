@@ -1,6 +1,6 @@
 """A Pinocchio model of a planar chain or tree, built independently from its parameters: the reference of
-``tests/lagrange/test_trees.py`` (CRBA, RNEA and ABA on a branched tree) and of ``benchmarks/throughput.py`` (ABA and
-its derivatives timed, trajectories compared). Needs Pinocchio (``pip install -e ".[test]"``)."""
+``tests/lagrange/planar/test_trees.py`` (CRBA, RNEA and ABA on a branched tree) and of ``benchmarks/throughput.py``
+(ABA and its derivatives timed, trajectories compared). Needs Pinocchio (``pip install -e ".[test]"``)."""
 
 from __future__ import annotations
 

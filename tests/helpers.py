@@ -1,7 +1,7 @@
 """Helpers shared by several test modules (the oracles they compare against live in ``benchmarks/oracles/``).
 
 - ``assert_close``, ``states``, ``per_state`` and ``random_chain``: random chains and states for the checks of the
-  equations of motion (``tests/lagrange/test_dynamics.py``, ``test_recursive.py``, ``test_systems.py``).
+  equations of motion (``tests/lagrange/test_dynamics.py``, ``planar/test_recursive.py``, ``test_systems.py``).
 - ``seeded_chain``, ``mujoco_model``, ``mujoco_batch_rollout``, ``random_problem``, ``rel``, ``SYSTEMS`` and ``CHAINS``:
   the chains exported to MuJoCo C and Brax and their rollouts (``tests/lagrange/test_against_mujoco.py``,
   ``test_against_brax.py`` and ``tests/lagrange/interop/test_mjcf.py``). Errors there are
@@ -59,7 +59,7 @@ def per_state(f, chain, *xs):
 def random_chain(rng, n, damped=0.5, *, cart=False, gravity=None, frames=False):
     """A random chain of n links: mixed joints, random prismatic axes, com, inertia, and
     damping/armature/gear present on random subsets of the joints. ``cart``: link 0 is a prismatic
-    cart on the x axis. ``gravity``: fixed, or None for one drawn by ``n`` (``tests/lagrange/test_recursive.py``
+    cart on the x axis. ``gravity``: fixed, or None for one drawn by ``n`` (``tests/lagrange/planar/test_recursive.py``
     fixes it by ``n``). ``frames``: every link also gets a frame offset (random, or exactly pi) and a centre of
     mass off its line."""
     if frames:

@@ -72,7 +72,7 @@ def _rkmk_step(b: AbstractBackend, f, tableau, h, y):
     increment (:func:`lagrange.rbda.dexpinv`; the velocity itself for hinges, slides and positions), the step to
     ``q0 exp(h sum_j b_j K_j)``; velocities as in a vector space. It keeps the method's order on the quaternions
     (MuJoCo's ``mj_RungeKutta``, the same without ``dexpinv``, is second order in the rotations: measured in
-    ``tests/lagrange/test_spatial.py``)."""
+    ``tests/lagrange/rbda/test_rbda.py``)."""
     q0, qd0 = y
     need = _needed_stages(tableau)
     K, acc = [None] * len(need), [None] * len(need)

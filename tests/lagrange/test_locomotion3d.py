@@ -329,7 +329,7 @@ def test_the_humanoid_s_reward_and_early_end():
 def test_shac_s_window_runs_through_a_3d_task():
     """SHAC's window on an ant of one leg (its torso on the free joint, one driven hinge; 2 environments, 3 steps, 2
     substeps), one about to fall: the state with its last action goes through the rollout and the reset, the loss is
-    finite. (Gradients through 3-D contact: test_contact3d.py.)"""
+    finite. (Gradients through 3-D contact: rbda/test_contact.py.)"""
     from optim.shac.losses import actor_loss
     from policies import Actor, Critic
 

@@ -32,7 +32,7 @@ class LinkKinematics:
     formulas on the joint angles' (one :func:`sincos` of every joint before the scan): a polynomial sine inside the
     step cost two kernels per link (one per output, each evaluating both polynomials), 10% of the forward step at
     n = 32. Against the exact sines of the summed angles the errors are <= 1.3e-15 at n = 32 and 1.9e-15 at n = 64
-    (``tests/lagrange/test_recursive.py``).
+    (``tests/lagrange/planar/test_recursive.py``).
     """
 
     def __init__(self, chain: PlanarChain, q, qd, nb: int, topology: Topology | None = None):

@@ -48,7 +48,7 @@ def live_eqns(jaxpr):
 class Traced:
     """The live equations of ``forward_dynamics(chain, q, qd, u, check=False)`` and its input variables: the program of
     the dynamics, without the run-time checks of traced parameters and pivots (``check=True``), which are
-    :func:`lagrange.model.checks.check_parameters`' and ``tests/lagrange/test_chain.py``'s concern."""
+    :func:`lagrange.model.checks.check_parameters`' and ``tests/lagrange/model/test_chain.py``'s concern."""
 
     def __init__(self, chain, inputs: bool = False):
         self.chain, self.links = chain, planar(chain)

@@ -486,7 +486,7 @@ def test_arguments_are_converted_or_refused_by_name():
         args = {**dict(q0=q0, qd0=qd0, controls=us, dt=0.01), **change}
         with pytest.raises(error, match=message):
             lg.simulate(chain, args.pop("q0"), args.pop("qd0"), args.pop("controls"), args.pop("dt"), **args)
-    for q, qd, u, error, message in [  # the shapes: tests/lagrange/test_chain.py
+    for q, qd, u, error, message in [  # the shapes: tests/lagrange/model/test_chain.py
         (jnp.zeros(2, bool), jnp.zeros(2), jnp.zeros(1), TypeError, r"q must hold real numbers"),
         (jnp.zeros(2), jnp.zeros(2), jnp.zeros(1, complex), TypeError, r"u must hold real numbers"),
     ]:

@@ -408,6 +408,6 @@ def test_a_tendon_that_only_limits_is_dropped_with_limits_ignore():
         from_mjcf(MODELS["gymnasium/humanoid"], contact="ignore")
     assert isinstance(from_mjcf(MODELS["gymnasium/humanoid"], limits="ignore", contact="ignore"), Tree)
     ant = from_mjcf(MODELS["gymnasium/ant"], limits="ignore", contact=lg.PenaltyContact(1e4, 1e3, 1e3, 0.9))
-    assert ant.contact is not None and ant.limits is None  # 3-D contact: tests/lagrange/test_contact3d.py
+    assert ant.contact is not None and ant.limits is None  # 3-D contact: tests/lagrange/rbda/test_contact.py
     with pytest.raises(NotImplementedError, match="contact law"):
         to_mjcf(ant)
