@@ -7,8 +7,8 @@ This is the textbook derivation a reader can verify line by line: dense forward 
 magnitude slower; an oracle, not for loops.
 
 ``tests/lagrange/test_dynamics.py``, ``planar/test_recursive.py`` and ``test_stability.py`` check ``lagrange``
-against it; ``benchmarks/derivation_overhead.py`` times it as the "naive autodiff" derivation that ``lagrange`` replaces. All
-import it as ``oracles.euler_lagrange`` (from the repository root).
+against it; ``benchmarks/derivation_overhead.py`` times it as the "naive autodiff" derivation that ``lagrange``
+replaces. All import it as ``oracles.euler_lagrange`` (from the repository root).
 """
 
 from __future__ import annotations
