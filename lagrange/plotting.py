@@ -117,8 +117,7 @@ def gait_figure(task: AbstractTask, q, actions, path: str, *, rewards=None, titl
     torso's pitch or tilt), the rewards when given, and the actions, against time.
 
     Args:
-        task: a locomotion task (one with ``track(q)``: :class:`lagrange.tasks.AbstractLocomotion`,
-            :class:`lagrange.tasks.AbstractLocomotion3D`).
+        task: a locomotion task (one with ``track(q)``: a :class:`lagrange.tasks.AbstractLocomotion`).
         q: the visited coordinates, shape ``(T + 1, nq)``.
         actions: the actions in ``[-1, 1]``, shape ``(T, m)``.
         path: the PNG file.

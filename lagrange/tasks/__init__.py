@@ -10,7 +10,9 @@ A task is an immutable :class:`equinox.Module` with pure methods ``reset(key)``,
 - :class:`DiffRLCartpole`, the SHAC authors' environment, NVlabs/DiffRL (:mod:`lagrange.tasks.diffrl_cartpole`).
 - :class:`Hopper` and :class:`Cheetah`, the SHAC paper's planar locomotion as DFlex runs it (``.diffrl()``;
   :mod:`lagrange.tasks.locomotion`), and :class:`Ant` and :class:`Humanoid`, its 3-D ones
-  (:mod:`lagrange.tasks.locomotion3d`).
+  (:mod:`lagrange.tasks.locomotion3d`): every one an :class:`AbstractLocomotion` (DFlex's robot, the noisy start,
+  the action cost, the gait's track), planar (:class:`AbstractPlanarLocomotion`) or 3-D
+  (:class:`AbstractLocomotion3D`).
 - :func:`balanced`, :func:`upright_error` and :func:`leaves_upright` judge an episode
   (:mod:`lagrange.tasks.poles`, with :class:`AbstractPoleTask`).
 
@@ -20,7 +22,7 @@ Each final class documents its state, action, observation and reward in a table.
 from lagrange.tasks.base import AbstractTask, TaskState, control_step, wrap
 from lagrange.tasks.poles import AbstractPoleTask, balanced, leaves_upright, upright_error
 from lagrange.tasks.diffrl_cartpole import POLE_INERTIA, DiffRLCartpole
-from lagrange.tasks.locomotion import AbstractLocomotion, Cheetah, Hopper
+from lagrange.tasks.locomotion import AbstractLocomotion, AbstractPlanarLocomotion, Cheetah, Hopper
 from lagrange.tasks.locomotion3d import AbstractLocomotion3D, Ant, Humanoid
 from lagrange.tasks.swingup import (
     BODY_SETS,
@@ -49,6 +51,7 @@ __all__ = [
     "BODY_SETS",
     "DiffRLCartpole",
     "AbstractLocomotion",
+    "AbstractPlanarLocomotion",
     "Hopper",
     "Cheetah",
     "AbstractLocomotion3D",

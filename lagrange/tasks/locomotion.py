@@ -32,8 +32,10 @@ MJCF's axes, so ``q`` and ``qd`` are DFlex's joint coordinates and velocities, `
 start (DFlex's observation ``rootz``).
 """
 
+import abc
 import math
-from typing import ClassVar, final
+from collections.abc import Callable
+from typing import ClassVar, Self, final
 
 import equinox as eqx
 import jax
@@ -49,7 +51,8 @@ from lagrange.model.limits import PenaltyLimits
 from lagrange.integrate.solvers import SemiImplicitEuler
 from lagrange.tasks.base import AbstractTask, TaskSolver, TaskState, check_number, check_schedule, check_state
 
-__all__ = ["AbstractLocomotion", "Hopper", "Cheetah", "capsule_mass_and_inertia", "DFLEX_SOLVER"]
+__all__ = ["AbstractLocomotion", "AbstractPlanarLocomotion", "Hopper", "Cheetah", "capsule_mass_and_inertia",
+           "cheetah_chain", "hopper_chain", "DFLEX_SOLVER"]
 
 DFLEX_SOLVER = SemiImplicitEuler(implicit_damping=False, hold_mass_matrix=True)
 """DFlex's integrator as the SHAC configs run it: explicit forces, the mass matrix held over a control step."""
@@ -151,35 +154,75 @@ def cheetah_chain() -> Chain:
 
 
 class AbstractLocomotion(AbstractTask):
-    """A planar robot on a floating base (``q[0]`` the root's x, ``q[1]`` its height above the start, ``q[2]`` the
-    torso's pitch) rewarded for running forward; DFlex's observation ``(q[1:], qd)``.
+    """A robot on a floating base rewarded for running forward, as DFlex's tasks run it (``envs/hopper.py``,
+    ``cheetah.py``, ``ant.py``, ``humanoid.py``): the planar hopper and cheetah (:class:`AbstractPlanarLocomotion`)
+    and the 3-D ant and humanoid (:class:`lagrange.tasks.AbstractLocomotion3D`). Each is built on DFlex's robot by
+    :meth:`diffrl`, starts from ``start`` plus uniform noise, pays ``action_cost |a|^2`` and tells a gait plot what to
+    show (:meth:`track`).
 
     Attributes:
         chain (Tree): the robot.
         dt (float): the control interval [s] (DFlex: 1/60).
         horizon (int): control steps per episode (DFlex: 1000).
-        substeps (int): solver steps per control interval (DFlex: 16).
+        substeps (int): solver steps per control interval.
         solver (TaskSolver): the integrator (DFlex's: :data:`DFLEX_SOLVER`).
-        start (tuple[float, ...]): the start coordinates before the noise [rad or m].
-        noise_q (float): half-width of the uniform noise on every start coordinate.
+        start (tuple[float, ...]): the start coordinates before the noise (``nq`` of them).
         noise_qd (float): half-width of the uniform noise on every start velocity.
-        action_cost (float): the reward's ``-action_cost |a|^2`` (DFlex: 0.1).
+        action_cost (float): the reward's ``-action_cost |a|^2``.
+        name (ClassVar[str]): a display name.
+        model (ClassVar): DFlex's robot, built (:func:`hopper_chain`, :func:`lagrange.tasks.dflex_trees.ant_tree`, ...).
+        planar (ClassVar[bool]): whether the robot moves in a plane (its ``chain`` must then be planar).
+        noises (ClassVar[tuple[str, ...]]): the fields of the start's noise, numbers >= 0.
     """
 
     chain: AbstractVar[Tree]
     start: AbstractVar[tuple[float, ...]]
-    noise_q: AbstractVar[float]
     noise_qd: AbstractVar[float]
     action_cost: AbstractVar[float]
     name: AbstractClassVar[str]
+    model: AbstractClassVar[Callable[[], Tree]]
+    planar: AbstractClassVar[bool]
+    noises: AbstractClassVar[tuple[str, ...]]
 
-    def _check(self) -> None:
-        check_schedule(self)
+    def __check_init__(self):
+        check_schedule(self, self.planar)
         cls = type(self).__name__
-        if len(self.start) != self.chain.nv:
-            raise ValueError(f"{cls}.start must have one entry per coordinate ({self.chain.nv}), got {self.start!r}")
-        for field in ("noise_q", "noise_qd", "action_cost"):
+        if len(self.start) != self.chain.nq:
+            raise ValueError(f"{cls}.start must have one entry per coordinate ({self.chain.nq}), got {self.start!r}")
+        for field in (*self.noises, "noise_qd", "action_cost"):
             check_number(self, field, 0.0)
+
+    @classmethod
+    def diffrl(cls, **overrides) -> Self:
+        """The SHAC paper's task as DFlex runs it, on DFlex's robot (:attr:`model`); ``overrides`` replace fields
+        (``solver=lg.SemiImplicitEuler()`` for exact dynamics without DFlex's held mass matrix, ``horizon=``, ...).
+
+        Raises:
+            ValueError, TypeError: naming a field out of range.
+        """
+        return cls(cls.model(), **overrides)
+
+    @abc.abstractmethod
+    def track(self, q: Float[ArrayLike, "*batch nq"]) -> dict[str, Float[Array, " *batch"]]:
+        """What a gait plot shows of coordinates ``q`` (``(*batch, nq)``): the body's x [m], its height [m] and its
+        pitch or tilt [rad], by name."""
+
+    def _action_cost(self, action) -> Float[Array, ""]:
+        a = jnp.clip(action, -1.0, 1.0)
+        return self.action_cost * jnp.sum(a * a)
+
+
+class AbstractPlanarLocomotion(AbstractLocomotion):
+    """A planar robot on a floating base (``q[0]`` the root's x, ``q[1]`` its height above the start, ``q[2]`` the
+    torso's pitch) rewarded for running forward; DFlex's observation ``(q[1:], qd)``.
+
+    Attributes:
+        noise_q (float): half-width of the uniform noise on every start coordinate.
+    """
+
+    noise_q: AbstractVar[float]
+    planar: ClassVar[bool] = True
+    noises: ClassVar[tuple[str, ...]] = ("noise_q",)
 
     @property
     def observation_size(self) -> int:
@@ -216,13 +259,9 @@ class AbstractLocomotion(AbstractTask):
         q = jnp.asarray(q)
         return {"x [m]": q[..., 0], "height above start [m]": q[..., 1], "pitch [rad]": q[..., 2]}
 
-    def _action_cost(self, action) -> Float[Array, ""]:
-        a = jnp.clip(action, -1.0, 1.0)
-        return self.action_cost * jnp.sum(a * a)
-
 
 @final
-class Hopper(AbstractLocomotion):
+class Hopper(AbstractPlanarLocomotion):
     """DFlex's hopper (the SHAC paper's); build it with :meth:`diffrl`.
 
     =====================  =============================================================================================
@@ -256,20 +295,8 @@ class Hopper(AbstractLocomotion):
     termination_height: float = eqx.field(static=True, default=-0.45, kw_only=True)
 
     name: ClassVar[str] = "hopper"
+    model: ClassVar[Callable[[], Tree]] = staticmethod(hopper_chain)
     ends_early: ClassVar[bool] = True
-
-    def __check_init__(self):
-        self._check()
-
-    @classmethod
-    def diffrl(cls, **overrides) -> "Hopper":
-        """The SHAC paper's hopper as DFlex runs it; ``overrides`` replace fields (``solver=lg.SemiImplicitEuler()``
-        for exact dynamics without DFlex's held mass matrix, ``horizon=``, ...).
-
-        Raises:
-            ValueError, TypeError: naming a field out of range.
-        """
-        return cls(hopper_chain(), **overrides)
 
     def reward(self, state: TaskState, action: Float[ArrayLike, " 3"], next_state: TaskState) -> Float[Array, ""]:
         """DFlex's hopper reward of the state the step lands in (see the table)."""
@@ -289,7 +316,7 @@ class Hopper(AbstractLocomotion):
 
 
 @final
-class Cheetah(AbstractLocomotion):
+class Cheetah(AbstractPlanarLocomotion):
     """DFlex's half-cheetah (the SHAC paper's); build it with :meth:`diffrl`.
 
     =====================  =============================================================================================
@@ -320,18 +347,7 @@ class Cheetah(AbstractLocomotion):
     action_cost: float = eqx.field(static=True, default=0.1, kw_only=True)
 
     name: ClassVar[str] = "cheetah"
-
-    def __check_init__(self):
-        self._check()
-
-    @classmethod
-    def diffrl(cls, **overrides) -> "Cheetah":
-        """The SHAC paper's half-cheetah as DFlex runs it; ``overrides`` replace fields.
-
-        Raises:
-            ValueError, TypeError: naming a field out of range.
-        """
-        return cls(cheetah_chain(), **overrides)
+    model: ClassVar[Callable[[], Tree]] = staticmethod(cheetah_chain)
 
     def reward(self, state: TaskState, action: Float[ArrayLike, " 6"], next_state: TaskState) -> Float[Array, ""]:
         """``qd[0] - 0.1 |a|^2`` of the state the step lands in."""

@@ -45,20 +45,21 @@ the exponential map: the same method to first order in the step.
 
 import abc
 import math
+from collections.abc import Callable
 from typing import ClassVar, final
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-from equinox import AbstractClassVar, AbstractVar
+from equinox import AbstractVar
 from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
 from lagrange.math import spatial as al
 from lagrange.model.joints import Free
 from lagrange.integrate.solvers import SemiImplicitEuler
-from lagrange.tasks.base import AbstractTask, TaskSolver, TaskState, check_number, check_schedule, check_state
+from lagrange.tasks.base import TaskSolver, TaskState, check_number, check_state
 from lagrange.tasks.dflex_trees import ant_tree, humanoid_tree
-from lagrange.tasks.locomotion import DFLEX_SOLVER
+from lagrange.tasks.locomotion import DFLEX_SOLVER, AbstractLocomotion
 from lagrange.model.tree import Tree
 
 __all__ = ["AbstractLocomotion3D", "Ant", "Humanoid", "HUMANOID_SOLVER"]
@@ -73,7 +74,7 @@ def _quat_axis_angle(axis, angle):
     return jnp.concatenate([jnp.cos(half)[..., None], jnp.sin(half)[..., None] * axis], axis=-1)
 
 
-class AbstractLocomotion3D(AbstractTask):
+class AbstractLocomotion3D(AbstractLocomotion):
     """A robot on a free joint rewarded for running along +x, DFlex's way (``envs/ant.py``, ``envs/humanoid.py``).
 
     The observation: the torso's height, its quaternion, its origin's velocity and its angular velocity in the world,
@@ -93,28 +94,19 @@ class AbstractLocomotion3D(AbstractTask):
         target_x (float): the target's distance along x [m] (DFlex: 10000 for the ant).
     """
 
-    chain: AbstractVar[Tree]
-    start: AbstractVar[tuple[float, ...]]
     noise_pos: AbstractVar[float]
     noise_angle: AbstractVar[float]
     noise_joints: AbstractVar[float]
-    noise_qd: AbstractVar[float]
     termination_height: AbstractVar[float]
-    action_cost: AbstractVar[float]
     target_x: AbstractVar[float]
-    name: AbstractClassVar[str]
     ends_early: ClassVar[bool] = True
+    planar: ClassVar[bool] = False
+    noises: ClassVar[tuple[str, ...]] = ("noise_pos", "noise_angle", "noise_joints")
 
-    def _check(self) -> None:
-        check_schedule(self, planar=False)
-        cls = type(self).__name__
+    def __check_init__(self):
         if not isinstance(self.chain.joints[0], Free):
-            raise TypeError(f"{cls}.chain's first joint must be a lagrange.Free, got "
+            raise TypeError(f"{type(self).__name__}.chain's first joint must be a lagrange.Free, got "
                             f"{type(self.chain.joints[0]).__name__}")
-        if len(self.start) != self.chain.nq:
-            raise ValueError(f"{cls}.start must have one entry per coordinate ({self.chain.nq}), got {self.start!r}")
-        for field in ("noise_pos", "noise_angle", "noise_joints", "noise_qd", "action_cost"):
-            check_number(self, field, 0.0)
         check_number(self, "termination_height", -math.inf)
         check_number(self, "target_x", 0.0, open_low=True)
 
@@ -178,9 +170,8 @@ class AbstractLocomotion3D(AbstractTask):
         action_cost |a|^2`` (each task's table), the action clipped to [-1, 1] here."""
         obs = self.observe(next_state)
         nj = self.chain.nq - 7
-        a = jnp.clip(action, -1.0, 1.0)
         return (obs[5] + 0.1 * obs[11 + 2 * nj] + obs[12 + 2 * nj] + self.height_reward(obs[0])
-                - self.action_cost * jnp.sum(a * a))
+                - self._action_cost(action))
 
     @abc.abstractmethod
     def height_reward(self, height: Float[Array, ""]) -> Float[Array, ""]:
@@ -253,19 +244,7 @@ class Ant(AbstractLocomotion3D):
     target_x: float = eqx.field(static=True, default=10000.0, kw_only=True)
 
     name: ClassVar[str] = "ant"
-
-    def __check_init__(self):
-        self._check()
-
-    @classmethod
-    def diffrl(cls, **overrides) -> "Ant":
-        """The SHAC paper's ant as DFlex runs it; ``overrides`` replace fields (``solver=lg.SemiImplicitEuler()``
-        for exact dynamics without DFlex's held mass matrix, ``horizon=``, ...).
-
-        Raises:
-            ValueError, TypeError: naming a field out of range.
-        """
-        return cls(ant_tree(), **overrides)
+    model: ClassVar[Callable[[], Tree]] = staticmethod(ant_tree)
 
     def height_reward(self, height: Float[Array, ""]) -> Float[Array, ""]:
         """``height - termination_height`` (DFlex's ant).
@@ -318,19 +297,10 @@ class Humanoid(AbstractLocomotion3D):
     standing_height: float = eqx.field(static=True, default=0.84, kw_only=True)
 
     name: ClassVar[str] = "humanoid"
+    model: ClassVar[Callable[[], Tree]] = staticmethod(humanoid_tree)
 
     def __check_init__(self):
-        self._check()
         check_number(self, "standing_height", -math.inf)
-
-    @classmethod
-    def diffrl(cls, **overrides) -> "Humanoid":
-        """The SHAC paper's humanoid as DFlex runs it; ``overrides`` replace fields.
-
-        Raises:
-            ValueError, TypeError: naming a field out of range.
-        """
-        return cls(humanoid_tree(), **overrides)
 
     def height_reward(self, height: Float[Array, ""]) -> Float[Array, ""]:
         """DFlex's humanoid's: ``-200 x^2`` for ``x = clip(height - standing_height, -1, 0.1) < 0``, else ``10 x``.
