@@ -33,8 +33,8 @@ TURN = np.array([0.0, np.pi, 0.0])  # the task counts the first pole from hangin
 def scaled(chain, theta):
     """``chain`` with masses and inertias times ``exp(theta[:n])`` (a density guess), damping ``exp(theta[n:])``."""
     return Chain([dataclasses.replace(lk, mass=lk.mass * jnp.exp(theta[i]), inertia=lk.inertia * jnp.exp(theta[i]),
-                                      damping=jnp.exp(theta[chain.n + i])) for i, lk in enumerate(chain.links())],
-                 gravity=chain.gravity)
+                                      damping=jnp.exp(theta[chain.nv + i])) for i, lk in enumerate(chain.links())],
+                 gravity=-chain.gravity[2])  # a planar chain's gravity vector is (0, 0, -g)
 
 
 def main(path, seed):
@@ -42,18 +42,19 @@ def main(path, seed):
     chain, (solver, dt) = from_mjcf(model, limits="ignore"), solver_of(model)  # the data stay inside the rail's limits
     rng, windows = np.random.default_rng(seed), []
     while len(windows) < 256:
-        q0 = np.concatenate([rng.uniform(-0.7, 0.7, 1), rng.uniform(-np.pi, np.pi, chain.n - 1)])
+        q0 = np.concatenate([rng.uniform(-0.7, 0.7, 1), rng.uniform(-np.pi, np.pi, chain.nv - 1)])
         u = np.full((5, chain.m), rng.uniform(-1, 1))
-        x, met = mujoco_rollout(model, q0, rng.uniform(-3, 3, chain.n), u)
+        x, met = mujoco_rollout(model, q0, rng.uniform(-3, 3, chain.nv), u)
         windows += [] if met else [(x, u)]
     states, controls = (np.array(a, np.float32) for a in zip(*windows))
-    theta0 = np.log(np.r_[np.full(chain.n, 2.0), np.full(chain.n, 0.3)]).astype(np.float32)
+    theta0 = np.log(np.r_[np.full(chain.nv, 2.0), np.full(chain.nv, 0.3)]).astype(np.float32)
     fit = identify(lambda th: scaled(chain, th), theta0, states, controls, dt, solver, iterations=80)
-    for name, got, true in (("masses", fit.chain.mass, chain.mass), ("damping", fit.chain.damping, chain.damping)):
+    damping = lambda c: np.array([float(lk.damping) for lk in c.links()])  # noqa: E731
+    for name, got, true in (("masses", fit.chain.mass, chain.mass), ("damping", damping(fit.chain), damping(chain))):
         print(f"{name}: {np.round(got, 5)}, model's {np.round(true, 5)}, "
               f"relative error {np.max(abs(got / true - 1)):.1e}")
     links = [dataclasses.replace(lk, offset=lk.offset - t) for lk, t in zip(fit.chain.links(), TURN)]
-    task = DoubleCartpole(Chain(links, gravity=fit.chain.gravity), upright=1.0, noise=0.05)  # 500 steps, 5 s
+    task = DoubleCartpole(Chain(links, gravity=-fit.chain.gravity[2]), upright=1.0, noise=0.05)  # 500 steps, 5 s
     config = CEAPGConfig(num_candidates=8, num_elites=3, iterations=60, apg_steps=25, episodes=2, lr_start=1e-2,
                          lr_end=1e-4, init_std=0.15, warmup_horizons=(100, 150, 200, 300, 400), warmup_iterations=10)
     result = train(config, task, GRUPolicy.for_task(task, key=jax.random.PRNGKey(seed)), jax.random.PRNGKey(seed))
@@ -63,11 +64,11 @@ def main(path, seed):
     act = jax.jit(lambda obs, h, t: policy(normalizer(obs), h, t == 0))
     held_mj = 0
     for _episode in range(8):  # the same policy driving MuJoCo on the original model
-        x, h, met = rng.uniform(-0.05, 0.05, 2 * chain.n), policy.initial_state(), False
+        x, h, met = rng.uniform(-0.05, 0.05, 2 * chain.nv), policy.initial_state(), False
         for t in range(task.horizon):
-            obs = task.observe(TaskState(jnp.asarray(x[: chain.n] + TURN, jnp.float32), jnp.asarray(x[chain.n:])))
+            obs = task.observe(TaskState(jnp.asarray(x[: chain.nv] + TURN, jnp.float32), jnp.asarray(x[chain.nv:])))
             a, h = act(obs, h, t)
-            xs, hit = mujoco_rollout(model, x[: chain.n], x[chain.n:], np.asarray(a, float))
+            xs, hit = mujoco_rollout(model, x[: chain.nv], x[chain.nv:], np.asarray(a, float))
             x, met = xs[-1], met or hit
         held_mj += int(not met and max(abs(x[1]), abs(x[1] + x[2])) < 0.2)
     print(f"the same policy driving MuJoCo (mj_step, the model's own masses): {held_mj}/8 held for 5 s")

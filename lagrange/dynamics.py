@@ -38,6 +38,8 @@ and its generalized force in N m or N.
 
 from __future__ import annotations
 
+import collections
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -117,11 +119,37 @@ def backend(tree: Tree, *, check: bool = True, general: bool = False) -> Abstrac
     """
     if not isinstance(tree, Tree):
         raise TypeError(f"the model must be a lagrange.Tree (a lagrange.chain.Chain is one), got {type(tree).__name__}")
+    key = _key(tree, check, general)
+    if key is not None and key in _PREPARED:  # a concrete tree prepared before: checked and lowered already
+        _PREPARED.move_to_end(key)
+        return _PREPARED[key]
     tree = _folded(check_parameters(tree, at_run_time=check))
     chain = None if general or not tree.planar else lower(tree)
     if chain is None:
-        return General(tree)
-    return Unrolled(chain) if chain.n < RECURSIVE_MIN else Recursive(chain)
+        out = General(tree)
+    else:
+        out = Unrolled(chain) if chain.n < RECURSIVE_MIN else Recursive(chain)
+    if key is not None:
+        _PREPARED[key] = out
+        if len(_PREPARED) > 256:
+            _PREPARED.popitem(last=False)
+    return out
+
+
+_PREPARED: collections.OrderedDict = collections.OrderedDict()
+"""The backends of the concrete trees prepared last, by :func:`_key`: a tree used again (an eager call in a loop, a
+second trace) is not checked and lowered again."""
+
+
+def _key(tree: Tree, check: bool, general: bool):
+    """The tree's static structure and the bytes of its parameters, or ``None`` where one is traced (a tree being
+    differentiated or vmapped is prepared afresh)."""
+    leaves, treedef = jax.tree_util.tree_flatten(tree)
+    if any(isinstance(x, jax.core.Tracer) or (isinstance(x, jax.Array) and not x.is_fully_addressable)
+           for x in leaves):
+        return None
+    values = tuple((np.asarray(x).dtype.str, np.shape(x), np.asarray(x).tobytes()) for x in leaves)
+    return treedef, values, check, general
 
 
 def _check(tree: Tree, name: str, x):

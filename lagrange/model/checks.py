@@ -77,7 +77,9 @@ def check_array(name: str, value, shape: tuple[int, ...] = (), *, nonnegative: b
         raise ValueError(f"{name} must be finite, got {c.tolist()}")
     if nonnegative and np.any(c < 0):
         raise ValueError(f"{name} must be >= 0, got {c.tolist()}")
-    return c.astype(jax.dtypes.canonicalize_dtype(float))
+    out = c.astype(jax.dtypes.canonicalize_dtype(float))
+    out.setflags(write=False)  # a model is immutable: its NumPy parameters too
+    return out
 
 
 def check_pair(name: str, value, owner: str = "Link") -> tuple[float, float] | None:

@@ -1,7 +1,8 @@
-"""The solvers (lagrange/solvers.py): RK4's Butcher tableau against the classical order conditions and, run through
-diffrax's own explicit Runge-Kutta step, against the classical RK4 formulas written by hand; the orders and adaptivity
-each solver reports; the refusal of anything that is not a solver, naming the allowed ones; and MomentumEuler's
-check of its sweep count. Convergence orders measured on chains are in test_integrate.py and test_stability.py."""
+"""The solvers (lagrange/integrate/solvers.py): RK4's Butcher tableau against the classical order conditions and, run
+through diffrax's own explicit Runge-Kutta step, against the classical RK4 formulas written by hand; the orders and
+adaptivity each solver reports; the refusal of anything that is not a solver, naming the allowed ones; and
+MomentumEuler's check of its sweep count. Convergence orders measured on chains are in test_rollout.py and
+test_stability.py."""
 
 import diffrax
 import jax.numpy as jnp

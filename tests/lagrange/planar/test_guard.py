@@ -84,10 +84,9 @@ def _both(tree, q, qd, u, q0, qd0, us):
 
         def final(q0, us):
             traj = lg.simulate(tree, q0, qd0, us, 0.002, lg.SemiImplicitEuler(), general=general, check=False)
-            return jnp.sum(traj.q[-1] * jnp.arange(1, tree.nq + 1)) + jnp.sum(traj.qd[-1] ** 2)
+            return jnp.sum(traj.q[-1] * jnp.arange(1, tree.nq + 1)) + jnp.sum(traj.qd[-1] ** 2), traj
 
-        value, grads = jax.value_and_grad(final, argnums=(0, 1))(q0, us)
-        traj = lg.simulate(tree, q0, qd0, us, 0.002, lg.SemiImplicitEuler(), general=general, check=False)
+        (value, traj), grads = jax.value_and_grad(final, argnums=(0, 1), has_aux=True)(q0, us)
         for name, x in zip(("M", "bias", "qdd", "rollout q", "rollout qd", "value", "d/dq0", "d/du"),
                            (*per_state, traj.q, traj.qd, value, *grads)):
             out.setdefault(name, []).append(x)
