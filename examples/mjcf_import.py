@@ -51,8 +51,7 @@ def main(path, seed):
     fit = identify(lambda th: scaled(chain, th), theta0, states, controls, dt, solver, iterations=80)
     damping = lambda c: np.array([float(lk.damping) for lk in c.links()])  # noqa: E731
     for name, got, true in (("masses", fit.chain.mass, chain.mass), ("damping", damping(fit.chain), damping(chain))):
-        print(f"{name}: {np.round(got, 5)}, model's {np.round(true, 5)}, "
-              f"relative error {np.max(abs(got / true - 1)):.1e}")
+        print(f"{name}: {np.round(got, 5)}, model's {np.round(true, 5)}, off by {np.max(abs(got / true - 1)):.1e}")
     links = [dataclasses.replace(lk, offset=lk.offset - t) for lk, t in zip(fit.chain.links(), TURN)]
     task = DoubleCartpole(Chain(links, gravity=-fit.chain.gravity[2]), upright=1.0, noise=0.05)  # 500 steps, 5 s
     config = CEAPGConfig(num_candidates=8, num_elites=3, iterations=60, apg_steps=25, episodes=2, lr_start=1e-2,
