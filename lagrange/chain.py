@@ -62,7 +62,8 @@ import numpy as np
 from jaxtyping import ArrayLike, Float
 
 from lagrange.math.scalar import cos_sin
-from lagrange.model.checks import check_every_joint_moves_something, check_laws, check_parents, concrete, value_of
+from lagrange.model.checks import (check_every_joint_moves_something, check_laws, check_parents, concrete, traced,
+                                   value_of)
 from lagrange.model.contact import PenaltyContact
 from lagrange.model.joints import Hinge, Slide
 from lagrange.model.limits import PenaltyLimits
@@ -137,17 +138,13 @@ class Chain(Tree):
         return lower(self).links()
 
 
-def _traced(*xs) -> bool:
-    return any(isinstance(x, jax.core.Tracer) for x in xs)
-
-
 def _negative(x):
-    return -x if _traced(x) else -np.asarray(x, float)
+    return -x if traced(x) else -np.asarray(x, float)
 
 
 def _vector(*xs):
     """Three scalars as a vector: NumPy when all are concrete (no JAX operation), else ``jax.numpy``."""
-    if _traced(*xs):
+    if traced(*xs):
         return jnp.stack([jnp.asarray(x, jax.dtypes.canonicalize_dtype(float)) for x in xs])
     return np.array([float(np.asarray(x)) for x in xs])
 
@@ -195,7 +192,7 @@ def _body(i: int, link: Link, parent: Link | None, p: int) -> Body:
         pos = _vector(0.0, 0.0, 0.0 if parent is None else _negative(parent.length))
     com = value_of(link.length) / 2 if link.com is None else link.com
     inertia = (value_of(link.mass) * value_of(link.length) ** 2 / 12) if link.inertia is None else link.inertia
-    inertia = jnp.eye(3) * inertia if _traced(inertia) else np.eye(3) * float(np.asarray(inertia))
+    inertia = jnp.eye(3) * inertia if traced(inertia) else np.eye(3) * float(np.asarray(inertia))
     common = dict(damping=link.damping, armature=link.armature, stiffness=link.stiffness, springref=link.springref,
                   range=link.range)
     if link.joint == "revolute":

@@ -42,14 +42,13 @@ import collections
 
 import equinox as eqx
 import jax
-import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float
 
 from lagrange.backend import AbstractBackend
 from lagrange.forces import actuation_matrix
-from lagrange.model.checks import check_parameters
-from lagrange.model.tree import Tree
+from lagrange.model.checks import check_parameters, check_shapes
+from lagrange.model.tree import Tree, check_tree
 from lagrange.planar.backend import Recursive, Unrolled
 from lagrange.planar.lower import lower
 from lagrange.rbda.backend import General
@@ -117,8 +116,7 @@ def backend(tree: Tree, *, check: bool = True, general: bool = False) -> Abstrac
         TypeError: for a model that is not a :class:`lagrange.Tree`.
         ValueError: for a concrete parameter that breaks its rule.
     """
-    if not isinstance(tree, Tree):
-        raise TypeError(f"the model must be a lagrange.Tree (a lagrange.chain.Chain is one), got {type(tree).__name__}")
+    check_tree(tree)
     key = _key(tree, check, general)
     if key is not None and key in _PREPARED:  # a concrete tree prepared before: checked and lowered already
         _PREPARED.move_to_end(key)
@@ -152,14 +150,6 @@ def _key(tree: Tree, check: bool, general: bool):
     return treedef, values, check, general
 
 
-def _check(tree: Tree, name: str, x):
-    size = {"q": tree.nq, "u": tree.m}.get(name, tree.nv)  # q has nq entries, qd and qdd nv, u m
-    shape = jnp.shape(x)
-    if len(shape) == 0 or shape[-1] != size:
-        what = " (the tree has no motor: pass u=None)" if name == "u" and size == 0 else ""
-        raise ValueError(f"{name} must have shape (..., {size}) for this tree{what}, got {shape}")
-
-
 def prepare(tree: Tree, *, check: bool = True, general: bool = False, **arrays) -> AbstractBackend:
     """:func:`backend` after checking the shapes of ``arrays`` against the tree (``q (..., nq)``, ``qd`` and ``qdd
     (..., nv)``, ``u (..., m)``; ``None`` skipped): what every public function does first.
@@ -167,11 +157,8 @@ def prepare(tree: Tree, *, check: bool = True, general: bool = False, **arrays) 
     Raises:
         ValueError: naming the array whose last axis does not match.
     """
-    if not isinstance(tree, Tree):
-        raise TypeError(f"the model must be a lagrange.Tree (a lagrange.chain.Chain is one), got {type(tree).__name__}")
-    for name, x in arrays.items():
-        if x is not None:
-            _check(tree, name, x)
+    check_tree(tree)
+    check_shapes(tree, **arrays)
     return backend(tree, check=check, general=general)
 
 

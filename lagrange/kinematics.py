@@ -12,18 +12,16 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
 from lagrange import rbda
-from lagrange.model.tree import Tree
+from lagrange.model.checks import check_shapes
+from lagrange.model.tree import Tree, check_tree
 
 __all__ = ["com_positions", "contact_point_positions", "positions", "tip_positions"]
 
 
 def _q(tree: Tree, q):
-    if not isinstance(tree, Tree):
-        raise TypeError(f"the model must be a lagrange.Tree (a lagrange.chain.Chain is one), got {type(tree).__name__}")
-    q = jnp.asarray(q)
-    if q.ndim == 0 or q.shape[-1] != tree.nq:
-        raise ValueError(f"q must have shape (..., {tree.nq}) for this tree, got {q.shape}")
-    return q
+    check_tree(tree)
+    check_shapes(tree, q=q)
+    return jnp.asarray(q)
 
 
 def positions(tree: Tree, q: Float[ArrayLike, "*batch nq"]) -> Float[Array, "*batch bodies 3"]:

@@ -29,7 +29,7 @@ from jaxtyping import Array, ArrayLike, Float
 from lagrange.dynamics import backend, prepare
 from lagrange.integrate.interval import interval_map
 from lagrange.integrate.solvers import RK4, MomentumEuler, SemiImplicitEuler, check_solver
-from lagrange.model.tree import Tree
+from lagrange.model.tree import Tree, check_tree
 
 
 class Trajectory(eqx.Module):
@@ -179,8 +179,7 @@ def simulate(
             controls.
         equinox.EquinoxRuntimeError: (when run, with ``check=True``) if the final state is not finite.
     """
-    if not isinstance(tree, Tree):
-        raise TypeError(f"tree must be a lagrange.Tree (a lagrange.chain.Chain is one), got {type(tree).__name__}")
+    check_tree(tree, "tree")
     check_solver(solver)
     _check_dt(dt)
     _check_substeps(substeps)

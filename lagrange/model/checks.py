@@ -15,6 +15,11 @@ import numpy as np
 __all__ = ["check_parameters"]
 
 
+def traced(*xs) -> bool:
+    """Whether any of ``xs`` is traced (a value not known while tracing under ``jit``, ``grad`` or ``vmap``)."""
+    return any(isinstance(x, jax.core.Tracer) for x in xs)
+
+
 def concrete(x):
     """The value of ``x`` as a NumPy array, or ``None`` if it is traced (not known yet)."""
     if isinstance(x, jax.core.Tracer):
@@ -23,6 +28,19 @@ def concrete(x):
         return np.asarray(x, dtype=float)
     except (TypeError, ValueError) as err:
         raise TypeError(f"expected a real number, got {x!r} of type {type(x).__name__}") from err
+
+
+def check_shapes(tree, **arrays) -> None:
+    """The last axis of each array against the tree: ``q (..., nq)``, ``u (..., m)``, any other (``qd``, ``qdd``)
+    ``(..., nv)``; ``None`` skipped. Raises a ValueError naming the array."""
+    for name, x in arrays.items():
+        if x is None:
+            continue
+        size = {"q": tree.nq, "u": tree.m}.get(name, tree.nv)
+        shape = jnp.shape(x)
+        if len(shape) == 0 or shape[-1] != size:
+            what = " (the tree has no motor: pass u=None)" if name == "u" and size == 0 else ""
+            raise ValueError(f"{name} must have shape (..., {size}) for this tree{what}, got {shape}")
 
 
 def check_scalar(name: str, value, *, positive: bool = False, nonnegative: bool = False, optional: bool = False):

@@ -19,12 +19,11 @@ import warnings
 from collections.abc import Sequence
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from lagrange.model.checks import check_array, check_points
+from lagrange.model.checks import check_array, check_points, traced
 from lagrange.model.contact import PenaltyContact
 from lagrange.model.joints import AbstractJoint, Free, Hinge, Slide
 from lagrange.model.limits import PenaltyLimits
@@ -76,9 +75,9 @@ class Body(eqx.Module):
         who = f"Body {name!r}" if name else "Body"
         self.mass = check_array(f"{who}.mass", mass, nonnegative=True)
         if np.shape(inertia) == (3,):  # principal moments along the body's axes
-            inertia = jnp.diag(inertia) if _traced(inertia) else np.diag(np.asarray(inertia, float))
+            inertia = jnp.diag(inertia) if traced(inertia) else np.diag(np.asarray(inertia, float))
         self.inertia = check_array(f"{who}.inertia", inertia, (3, 3))
-        J = np.asarray(self.inertia) if not _traced(self.inertia) else None
+        J = np.asarray(self.inertia) if not traced(self.inertia) else None
         if J is not None:
             if np.max(np.abs(J - J.T)) > 1e-12 * max(1.0, np.max(np.abs(J))):
                 raise ValueError(f"{who}.inertia must be symmetric, got {J.tolist()}")
@@ -87,7 +86,7 @@ class Body(eqx.Module):
                                  f"{np.linalg.eigvalsh(J).tolist()}")
         self.com = check_array(f"{who}.com", com, (3,))
         self.pos = check_array(f"{who}.pos", pos, (3,))
-        if _traced(quat):
+        if traced(quat):
             raise TypeError(f"{who}.quat is static (a body's orientation is structure, as a joint's axis is): give "
                             "four numbers, not a traced value")
         quat = np.asarray(check_array(f"{who}.quat", quat, (4,)), float)  # NumPy: static
@@ -117,10 +116,6 @@ class Body(eqx.Module):
         self.name = name
 
 
-def _traced(x) -> bool:
-    return isinstance(x, jax.core.Tracer)
-
-
 class Motor(eqx.Module):
     """A motor on a hinge or slide: generalized force ``gear * u`` on it, ``u`` first clamped into
     ``control_range`` where one is given (MuJoCo's ``<motor>`` with ``ctrlrange``).
@@ -140,7 +135,7 @@ class Motor(eqx.Module):
             raise ValueError(f"Motor.joint must be a joint's index >= 0, got {joint!r}")
         self.joint = int(joint)
         self.gear = check_array("Motor.gear", gear, nonnegative=True)
-        if not _traced(self.gear) and float(np.asarray(self.gear)) <= 0:
+        if not traced(self.gear) and float(np.asarray(self.gear)) <= 0:
             raise ValueError(f"Motor.gear must be > 0 (reverse a motor by negating its control), got "
                              f"{float(np.asarray(self.gear))}")
         if control_range is not None:
@@ -323,3 +318,10 @@ class Tree(eqx.Module):
             if self.parents[k] in out:
                 out.append(k)
         return tuple(out)
+
+
+def check_tree(model, name: str = "the model") -> None:
+    """Raise a TypeError naming ``name`` unless ``model`` is a :class:`Tree` (a :class:`lagrange.chain.Chain` is
+    one): what every function taking a model checks first."""
+    if not isinstance(model, Tree):
+        raise TypeError(f"{name} must be a lagrange.Tree (a lagrange.chain.Chain is one), got {type(model).__name__}")

@@ -31,6 +31,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from lagrange.model.checks import traced
 from lagrange.model.link import Link
 from lagrange.model.joints import Hinge
 from lagrange.model.plane import normal, rotations
@@ -43,10 +44,6 @@ __all__ = ["lower"]
 _SNAP = 1e-14  # entries of the static frame maps within round-off of 0 or +-1 are those (a turn about y is exact)
 
 
-def _traced(*xs) -> bool:
-    return any(isinstance(x, jax.core.Tracer) for x in xs)
-
-
 def _snap(x: np.ndarray) -> np.ndarray:
     x = np.array(x, float)
     for target in (0.0, 1.0, -1.0):
@@ -56,7 +53,7 @@ def _snap(x: np.ndarray) -> np.ndarray:
 
 def _apply(P: np.ndarray, v):
     """``P v`` for a static ``P``: rows with one entry of +-1 read a component (exact, no product), others a sum."""
-    if not _traced(v):
+    if not traced(v):
         v = np.asarray(v, float)
     out = []
     for row in P:
@@ -72,15 +69,15 @@ def _apply(P: np.ndarray, v):
 
 def _sub(a, b):
     """``a - b`` for 3-vectors, skipping a concrete zero ``b`` (exact, no operation)."""
-    if not _traced(b) and not np.any(np.asarray(b)):
+    if not traced(b) and not np.any(np.asarray(b)):
         return a
-    if not _traced(a, b):
+    if not traced(a, b):
         return np.asarray(a, float) - np.asarray(b, float)
     return jnp.asarray(a) - jnp.asarray(b)
 
 
 def _is(x, value) -> bool:
-    return not _traced(x) and float(np.asarray(x)) == value
+    return not traced(x) and float(np.asarray(x)) == value
 
 
 def _wrap(a: float) -> float:
@@ -94,7 +91,7 @@ def _basis(tree, Y: np.ndarray):
     world's ``z`` (or ``x``) projected onto the plane; ``X = Y x Z``."""
     g = tree.gravity
     Z = None
-    if not _traced(g):
+    if not traced(g):
         g = np.asarray(g, float)
         g_in = g - (g @ Y) * Y
         if np.linalg.norm(g_in) > 0:
@@ -222,7 +219,7 @@ def lower(tree) -> PlanarChain | None:
             kw |= dict(com=_neg(c[1]), com_normal=c[0], inertia=moment)
             if body.tip is not None:
                 t = _apply(P, _sub(body.tip, origin[i]))
-                if _is(t[0], 0.0) and not _traced(t[1]) and float(np.asarray(t[1])) <= 0:
+                if _is(t[0], 0.0) and not traced(t[1]) and float(np.asarray(t[1])) <= 0:
                     length[i] = -float(np.asarray(t[1]))
             kw["contacts"] = [_contact(P, R, p, point, origin[i]) for b2, (R, p) in carried.items()
                               if st.body_link[b2] == i for point in tree.bodies[b2].contacts]
@@ -239,28 +236,28 @@ def lower(tree) -> PlanarChain | None:
         if not (_is(at[0], tip[0]) and _is(at[1], tip[1])):
             lk["attach"] = (at[0], at[1])
     g = tree.gravity
-    gravity = -float(np.asarray(g, float) @ Z) if not _traced(g) else -sum(float(Z[k]) * g[k] for k in range(3) if Z[k])
+    gravity = -float(np.asarray(g, float) @ Z) if not traced(g) else -sum(float(Z[k]) * g[k] for k in range(3) if Z[k])
     return PlanarChain([Link(length=length[i], **lk) for i, lk in enumerate(links)], gravity,
                        contact=tree.contact if any(lk.get("contacts") for lk in links) else None,
                        limits=tree.limits, dtype=dtype)
 
 
 def _is_zero3(v) -> bool:
-    return not _traced(v) and not np.any(np.asarray(v))
+    return not traced(v) and not np.any(np.asarray(v))
 
 
 def _add(a, b):
-    if not _traced(a, b):
+    if not traced(a, b):
         return np.asarray(a, float) + np.asarray(b, float)
     return jnp.asarray(a) + jnp.asarray(b)
 
 
 def _rotate(R, v):
-    return R @ np.asarray(v, float) if not _traced(R, v) else jnp.asarray(R) @ v
+    return R @ np.asarray(v, float) if not traced(R, v) else jnp.asarray(R) @ v
 
 
 def _neg(x):
-    return -x if _traced(x) else -float(np.asarray(x))
+    return -x if traced(x) else -float(np.asarray(x))
 
 
 def _contact(P, R, p, point, origin):
@@ -281,8 +278,7 @@ def _rigid(tree, st, carried, b, Y, R_world):
         return body.mass, body.com, _quadratic(n_b, body.inertia)
     # several bodies: their centres of mass in b's frame, combined by the parallel-axis theorem in the plane
     xs = [(tree.bodies[b2], _add(p, _rotate(R, tree.bodies[b2].com)), R) for b2, R, p in members]
-    traced = _traced(*(x for body, c, _ in xs for x in (body.mass, c, body.inertia)))
-    xp = jnp if traced else np
+    xp = jnp if traced(*(x for body, c, _ in xs for x in (body.mass, c, body.inertia))) else np
     m = sum(body.mass for body, _, _ in xs)
     c = sum(body.mass * c for body, c, _ in xs) / xp.where(m > 0, m, 1.0)
     moment = 0.0

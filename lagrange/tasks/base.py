@@ -24,7 +24,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 from lagrange.integrate import step as _step
 from lagrange.model.joints import Hinge, Slide
 from lagrange.integrate.solvers import MomentumEuler, SemiImplicitEuler, check_solver
-from lagrange.model.tree import Tree
+from lagrange.model.tree import Tree, check_tree
 
 __all__ = ["TaskState", "AbstractTask", "TaskSolver", "control_step", "wrap",
            "check_schedule", "check_joints", "check_number", "check_state", "check_chain", "joint_kinds"]
@@ -227,9 +227,7 @@ def check_chain(task: AbstractTask, planar: bool = True) -> None:
     Raises:
         TypeError: naming the field and what it got.
     """
-    if not isinstance(task.chain, Tree):
-        raise TypeError(f"{type(task).__name__}.chain must be a lagrange.Tree (a lagrange.chain.Chain is one), got "
-                        f"{type(task.chain).__name__}")
+    check_tree(task.chain, f"{type(task).__name__}.chain")
     if planar and not task.chain.planar:
         raise TypeError(f"{type(task).__name__}.chain must be a planar tree (hinges about one axis, slides across "
                         "it: a lagrange.chain.Chain), got one that is not")

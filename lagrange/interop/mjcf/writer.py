@@ -38,7 +38,7 @@ import jax
 import numpy as np
 
 from lagrange.model.joints import Ball, Free, Hinge, Slide
-from lagrange.model.tree import WORLD, Tree
+from lagrange.model.tree import WORLD, Tree, check_tree
 
 INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
 """The MuJoCo integrators :func:`to_mjcf` accepts (Brax loads only ``"Euler"``)."""
@@ -94,8 +94,7 @@ def to_mjcf(
         NotImplementedError: for a tree with a contact or limit law, or a ball's or free joint's spring whose rest
             pose is not the body as written.
     """
-    if not isinstance(tree, Tree):
-        raise TypeError(f"tree must be a lagrange.Tree (a lagrange.chain.Chain is one), got {type(tree).__name__}")
+    check_tree(tree, "tree")
     if isinstance(timestep, bool) or not isinstance(timestep, (int, float, np.floating, np.integer)):
         raise TypeError(f"timestep must be a positive real number of seconds, got {timestep!r}")
     if not (math.isfinite(float(timestep)) and float(timestep) > 0):
