@@ -47,7 +47,8 @@ class TaskState(NamedTuple):
     action last applied.
 
     Attributes:
-        q (Float[Array, "nq"]): coordinates [rad; m for a cart] (``nq = n`` for a chain).
+        q (Float[Array, "nq"]): coordinates [rad; m for a cart] (``nq = nv``, one per joint, for a chain; a ball
+            or a free joint has a quaternion among them).
         qd (Float[Array, "nv"]): velocities [rad/s; m/s for a cart].
         action (Float[Array, "m"] | None): the clipped action of the step that reached the state (zeros at a reset),
             for tasks that observe it (DFlex's Ant and Humanoid); None for the others. :func:`control_step` keeps it
