@@ -57,8 +57,9 @@ def test_upright_fraction_of_starts():
         paper, mixed, always, mixed_angles, always_angles = draw(keys)
         up = np.asarray(jnp.abs(mixed_angles[:, 0]) < 0.1)
         assert 0.22 < up.mean() < 0.28  # binomial(4000, 0.25): std 0.007
-        # the same noise either way: only the first pole's angle moves, by exactly pi when upright
-        np.testing.assert_array_equal(mixed.qd, paper.qd)
+        # the same noise either way: only the first pole's angle moves, by exactly pi when upright (the velocities
+        # to two ulps of the noise's scale, 0.01: the three draws are fused differently in the one program)
+        np.testing.assert_allclose(mixed.qd, paper.qd, rtol=0, atol=2 * np.finfo(np.float64).eps * 0.01)
         np.testing.assert_allclose(mixed.q[:, i] - paper.q[:, i], np.pi * up, atol=1e-6)
         np.testing.assert_allclose(always.q[:, i] - paper.q[:, i], np.pi, atol=1e-6)
         assert bool(jnp.all(jnp.abs(always_angles[:, 0]) <= 0.01 + 1e-6))
