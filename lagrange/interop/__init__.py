@@ -3,6 +3,8 @@
 - :mod:`lagrange.interop.mjcf`: :func:`to_mjcf` writes a chain as an MJCF model, so MuJoCo, MJX and Brax
   simulate (or show) the very same system; :func:`from_mjcf` reads a planar MJCF model (dm_control's,
   Gymnasium's, Brax's) through MuJoCo's compiler as a chain with ``q = qpos``.
+- :mod:`lagrange.interop.urdf`: :func:`from_urdf` reads a URDF robot as it ships (no mesh opened, inertias as
+  written, fixed joints merged, a floating base on request) as a tree, exact against Pinocchio.
 - :mod:`lagrange.interop.brax`: :class:`BraxEnv` puts a task of :mod:`lagrange.tasks` behind Brax's
   ``brax.envs.base.Env``, so Brax's PPO, SAC and APG trainers run on it; :func:`brax_training_compat`
   is the context in which Brax 0.14.2's trainers run on JAX 0.10.
@@ -20,7 +22,7 @@ from __future__ import annotations
 
 import importlib
 
-__all__ = ["BraxEnv", "GymEnv", "brax_training_compat", "from_mjcf", "to_mjcf"]
+__all__ = ["BraxEnv", "GymEnv", "brax_training_compat", "from_mjcf", "from_urdf", "to_mjcf"]
 
 _HOMES = {
     "BraxEnv": "lagrange.interop.brax",
@@ -28,6 +30,7 @@ _HOMES = {
     "GymEnv": "lagrange.interop.gymnasium",
     "to_mjcf": "lagrange.interop.mjcf",
     "from_mjcf": "lagrange.interop.mjcf",
+    "from_urdf": "lagrange.interop.urdf",
 }
 
 

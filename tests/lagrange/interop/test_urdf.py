@@ -1,0 +1,116 @@
+"""``from_urdf`` reads a URDF as it ships (no mesh opened) into a tree equal to Pinocchio's reading of the same file
+(M, gravity, C qd, fixed base and floating base) and to MuJoCo's (``q = qpos``), and refuses bad files by element.
+
+``tests/assets/arm.urdf``: a branched arm with mesh visuals that do not exist (``package://`` and relative paths), a
+revolute, a continuous and a prismatic joint about tilted axes, rotated inertial frames, a fixed joint whose child
+carries mass (merged), a massless tool link on a fixed joint, damping, a friction that is dropped, effort limits,
+a box and a sphere for collision. The whole of ``example-robot-data`` is ``python -m benchmarks.urdf_robots``."""
+
+import pathlib
+import warnings
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import lagrange as lg
+from lagrange.interop.urdf import from_urdf
+from tests.helpers import mujoco_terms, rel
+
+ARM = pathlib.Path(__file__).resolve().parents[2] / "assets" / "arm.urdf"
+TIGHT = 1e-12  # float64 round-off on an arm of a few bodies (the errors measured are ~1e-16)
+
+
+def _read(path=ARM, **kw):
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*friction")
+        return from_urdf(path, **kw)
+
+
+@pytest.mark.parametrize("floating", [False, True], ids=["fixed", "floating"])
+def test_the_arm_equals_pinocchio(floating):
+    import pinocchio as pin
+
+    from benchmarks.urdf_robots import compare
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*friction")
+        r = compare(ARM, floating, states=3)
+    assert (r["nv"], r["pinocchio_nv"]) == ((10, 10) if floating else (4, 4))
+    assert r["M"] <= TIGHT and r["g"] <= TIGHT and r["Cqd"] <= TIGHT, r
+    assert pin.buildModelFromUrdf(str(ARM)).nv == 4
+
+
+def test_q_is_mujocos_qpos_and_the_forces_are_its_own():
+    import mujoco
+
+    tree = _read(motors=False)
+    model = mujoco.MjModel.from_xml_path(str(ARM))  # MuJoCo discards a URDF's visuals: it compiles this one
+    assert [model.joint(i).name for i in range(model.njnt)] == ["shoulder", "elbow", "extend", "side_joint"]
+    assert [b.name for b in tree.bodies] == ["upper", "fore", "slider", "side"]
+    rng = np.random.default_rng(3)
+    q, qd = rng.uniform(-1, 1, 4), rng.uniform(-1, 1, 4)
+    M, bias, _ = mujoco_terms(model, q, qd, np.zeros(model.nu))
+    assert rel(lg.mass_matrix(tree, jnp.asarray(q)), M) <= TIGHT
+    assert rel(lg.bias_forces(tree, jnp.asarray(q), jnp.asarray(qd)), bias) <= TIGHT  # damping included
+
+
+def test_what_is_read_and_what_is_warned_about():
+    with pytest.warns(UserWarning, match=r"<joint name=\"side_joint\"> has <dynamics friction=\"0.2\">"):
+        tree = from_urdf(ARM)
+    # fixed joints merge: upper + flange (0.4 kg) in one body; the massless tool on the slider adds nothing
+    assert np.isclose(float(tree.bodies[0].mass), 1.9) and np.isclose(float(tree.bodies[2].mass), 0.3)
+    assert [float(j.damping) for j in tree.joints] == [0.3, 0.0, 0.0, 0.1]
+    assert tree.m == 4 and tree.control_ranges == ((-50.0, 50.0), None, (-20.0, 20.0), (-5.0, 5.0))
+    assert tree.limits is None and all(j.range is None for j in tree.joints)  # limits="ignore", as Pinocchio
+    limited = _read(limits=lg.PenaltyLimits(1e3, 10.0))
+    assert [j.range for j in limited.joints] == [(-2.0, 2.0), None, (0.0, 0.1), (-1.0, 1.0)]  # continuous: none
+    touching = _read(contact=lg.PenaltyContact(2e4, 1e3, 1e3, 0.9), floating_base=True)
+    assert [len(b.contacts) for b in touching.bodies] == [8, 0, 0, 1, 0]  # the base's box corners, the sphere
+    assert touching.bodies[3].contacts[0][3] == 0.03
+    mimic = ARM.read_text().replace('<axis xyz="0 1 1"/>', '<axis xyz="0 1 1"/><mimic joint="shoulder"/>')
+    with pytest.warns(UserWarning, match=r"<joint name=\"elbow\"> mimics joint 'shoulder'; read as an independent"):
+        _read(mimic)
+    odd = ARM.read_text().replace('ixx="0.02" ixy="0.0" ixz="0.0" iyy="0.025"', 'ixx="0.002" ixy="0.0" ixz="0.0" '
+                                  'iyy="0.025"')
+    with pytest.warns(UserWarning, match=r"link 'upper' has an inertia that is not physical"):
+        _read(odd)
+
+
+BAD = {
+    "missing link": (lambda s: s.replace('<child link="fore"/>', '<child link="forearm"/>'),
+                     r"<joint name=\"elbow\"> names the child link 'forearm', which does not exist"),
+    "two parents": (lambda s: s.replace('<child link="side"/>', '<child link="fore"/>'),
+                    r"<joint name=\"side_joint\">: link 'fore' is already the child of joint 'elbow'"),
+    "cycle": (lambda s: s.replace('</robot>', '<joint name="loop" type="fixed"><parent link="slider"/>'
+                                  '<child link="base"/></joint></robot>'), r"no link is the root .*a cycle"),
+    "malformed": (lambda s: s.replace("</robot>", ""), r"not well-formed XML"),
+    "bad number": (lambda s: s.replace('<mass value="3.0"/>', '<mass value="three"/>'),
+                   r"<link name=\"base\"> <mass>: value=\"three\" must be a finite number"),
+    "no moving joint": (lambda s: s.replace('type="revolute"', 'type="fixed"').replace('type="continuous"',
+                                                                                        'type="fixed"')
+                        .replace('type="prismatic"', 'type="fixed"'), r"the robot has no moving joint"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD))
+def test_bad_files_are_refused_naming_the_file_and_the_element(case):
+    edit, message = BAD[case]
+    with pytest.raises(ValueError, match=r"from_urdf: the URDF text: " + message):
+        _read(edit(ARM.read_text()))
+    with pytest.raises(ValueError, match=rf"from_urdf: cannot read {ARM.parent}/nothing.urdf"):
+        from_urdf(ARM.parent / "nothing.urdf")
+
+
+def test_a_root_that_already_floats_and_mesh_collisions_are_refused():
+    free = ('<link name="world"/><joint name="float" type="floating"><parent link="world"/><child link="base"/>'
+            '</joint></robot>')
+    floating = ARM.read_text().replace("</robot>", free)
+    tree = _read(floating)
+    assert tree.nq == 11 and tree.bodies[0].name == "base"  # the floating joint is the free joint
+    with pytest.raises(ValueError, match=r"this robot's root already floats: drop floating_base"):
+        _read(floating, floating_base=True)
+    mesh = ARM.read_text().replace('<sphere radius="0.03"/>', '<mesh filename="package://arm/tip.stl"/>')
+    with pytest.raises(NotImplementedError, match=r"<link name=\"slider\"> <collision> 0: a <mesh> collision"):
+        _read(mesh, contact=lg.PenaltyContact(2e4, 1e3, 1e3, 0.9))
+    assert _read(mesh).nv == 4  # without contact the mesh is never opened
