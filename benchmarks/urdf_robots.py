@@ -10,7 +10,8 @@ random states, relative error ``max|a - b| / max(1, max|b|)``. Pinocchio's joint
 differ), a continuous joint's ``(cos, sin)`` taken from lagrange's angle, and a free joint's velocity turned from
 MuJoCo's convention (linear velocity in the world frame) to Pinocchio's (in the body frame): ``qd = T v`` with
 ``T = diag(R, 1)``, so ``M = T^-T M_pin T^-1`` and the forces ``T^-T tau_pin`` (the bias also takes
-``M_pin d(T^-1)/dt qd``). Also recorded: whether MuJoCo's compiler reads the file (:func:`from_mjcf`), and the warnings.
+``M_pin d(T^-1)/dt qd``). Also recorded: whether MuJoCo's compiler reads the file (:func:`from_mjcf`), and where it
+does, the mass matrix and ``qfrc_bias - qfrc_passive`` against MuJoCo's (``q = qpos``); the warnings.
 
 Needs ``example-robot-data`` (``pip install --no-deps example-robot-data``: 130 MB of robots; its cmake dependency is
 not needed to read them) and Pinocchio (the test extra). Writes ``benchmarks/results/urdf_robots.json`` and ``.md``.
@@ -108,6 +109,27 @@ def compare(path: pathlib.Path, floating: bool, states: int = 2, seed: int = 0) 
                 warnings=sorted({str(w.message).split(": ", 1)[-1][:160] for w in caught}))
 
 
+def against_mujoco(path: pathlib.Path, seed: int = 0) -> float:
+    """The worst relative error of the mass matrix and of ``qfrc_bias - qfrc_passive`` against MuJoCo's own compile
+    of the file (a fixed base, ``q = qpos``), at one random state."""
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_path(str(path))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tree = from_urdf(path, motors=False)
+    rng = np.random.default_rng(seed)
+    q, qd = rng.uniform(-1.0, 1.0, model.nq), rng.uniform(-1.0, 1.0, model.nv)
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = q, qd
+    mujoco.mj_forward(model, data)
+    M = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, M)
+    terms = jax.jit(lambda q, qd: (lg.mass_matrix(tree, q), lg.bias_forces(tree, q, qd)))
+    M_lg, bias = (np.asarray(x) for x in terms(jnp.asarray(q), jnp.asarray(qd)))
+    return max(_rel(M_lg, M), _rel(bias, data.qfrc_bias - data.qfrc_passive))
+
+
 def mujoco_reads(path: pathlib.Path) -> str | None:
     """``None`` where MuJoCo's compiler reads the file (:func:`from_mjcf`), else its error's first line."""
     from lagrange.interop.mjcf import from_mjcf
@@ -143,6 +165,8 @@ def main(argv=None):
             rows.append(dict(robot=name, pinocchio="no joint"))
             continue
         row = dict(robot=name, pinocchio="reads", mujoco=mujoco_reads(path) or "reads")
+        if row["mujoco"] == "reads":
+            row["against_mujoco"] = against_mujoco(path)
         t = time.perf_counter()
         for base in ("fixed", "floating"):
             try:
@@ -160,6 +184,7 @@ def main(argv=None):
         files=len(rows), pinocchio_reads=len(ok),
         lagrange_reads={b: sum("error" not in r[b] for r in ok) for b in ("fixed", "floating")},
         mujoco_reads=sum(r["mujoco"] == "reads" for r in ok),
+        worst_against_mujoco=max((r["against_mujoco"] for r in ok if "against_mujoco" in r), default=None),
         worst={b: {k: max((r[b][k] for r in ok if k in r[b]), default=None) for k in ("M", "g", "Cqd")}
                for b in ("fixed", "floating")},
     )

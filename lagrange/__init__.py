@@ -6,7 +6,7 @@ import sys
 
 from lagrange.chain import Chain, Link
 from lagrange.model.joints import Ball, Free, Hinge, Slide
-from lagrange.model.tree import Body, Motor, Tree
+from lagrange.model.tree import AffineActuator, Body, Motor, Tree
 from lagrange.model.contact import PenaltyContact
 from lagrange.model.limits import PenaltyLimits
 from lagrange.forces import actuation_matrix, clamp_controls
@@ -33,6 +33,7 @@ __all__ = [
     "Free",
     "Hinge",
     "Motor",
+    "AffineActuator",
     "Slide",
     "Tree",
     "RK4",

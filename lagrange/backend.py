@@ -67,9 +67,16 @@ class AbstractBackend(eqx.Module):
     def energy(self, q, qd):
         """``(kinetic, potential)``, each ``(*batch,)``."""
 
+    @property
     @abc.abstractmethod
-    def actuation(self, u):
-        """``B u`` with ``u`` clamped into the motors' ranges, ``(*batch, nv)``; ``None`` without control."""
+    def state_dependent_actuation(self) -> bool:
+        """Whether an actuator's force depends on its joint's position or velocity (``actuation`` then needs ``q`` and
+        ``qd``)."""
+
+    @abc.abstractmethod
+    def actuation(self, u, q=None, qd=None):
+        """The actuators' generalized forces, ``B u`` with ``u`` clamped into the motors' ranges (and the state's terms
+        of the actuators that have them, at ``q`` and ``qd``), ``(*batch, nv)``; ``None`` without control."""
 
     @abc.abstractmethod
     def spring_forces(self, q):

@@ -99,7 +99,7 @@ def _momentum_euler_step(b: AbstractBackend, iterations: int, h, q, qd, u):
     springs = b.spring_forces(q)  # the joint springs, a potential force like gravity
     if springs is not None:
         force = force - springs
-    actuation = None if u is None else b.actuation(u)
+    actuation = None if u is None else b.actuation(u, q, qd)
     if actuation is not None:
         force = force + actuation
     A = M if b.damping is None else M + h * jnp.diag(b.damping)
@@ -141,12 +141,13 @@ def _held_mass_matrix_interval(b: AbstractBackend, solver: SemiImplicitEuler, h,
         if solver.implicit_damping and b.damping is not None:
             M = M + h * jnp.diag(b.damping)
         solve = spd_solver(M)
-        Bu = None if u is None else b.actuation(u)
+        Bu = None if u is None or b.state_dependent_actuation else b.actuation(u)
         Bu = 0.0 if Bu is None else Bu
 
         def body(carry, _):
             q, qd = carry
-            qdd = solve(Bu - b.bias_forces(q, qd))
+            act = b.actuation(u, q, qd) if u is not None and b.state_dependent_actuation else Bu
+            qdd = solve(act - b.bias_forces(q, qd))
             qd1 = qd + h * qdd
             return (b.move(q, qd1, h), qd1), None
 

@@ -22,6 +22,8 @@ same robot):
 - ``<dynamics damping>`` is the joint's damping. ``<dynamics friction>`` (Coulomb friction, not modelled) is dropped
   with a warning naming the joint. A ``<mimic>`` joint is read as an independent joint, as Pinocchio reads it by
   default, with a warning naming it.
+- Every joint keeps its URDF name (:meth:`lagrange.Tree.joint_index` finds it; ``floating_base=True``'s free joint is
+  ``"root_joint"``, as Pinocchio names it), every body its link's.
 - ``motors=True`` (the default) drives every joint with a :class:`~lagrange.model.tree.Motor` of gear 1 (``u`` is the
   joints' torques and forces, in the order of ``qd``'s joint velocities), its control clamped to ``<limit effort>``
   where that is positive.
@@ -241,7 +243,7 @@ def _read(text, file, floating_base, motors, limits, contact, gravity):
         if name in links:
             raise _Error(f"two links are named {name!r}")
         links[name] = el
-    joints, parent_of, children = [], {}, {name: [] for name in links}
+    parent_of, children = {}, {name: [] for name in links}
     for el in robot.findall("joint"):
         name, kind = el.get("name"), el.get("type")
         where = f"<joint name=\"{name}\">"
@@ -263,7 +265,6 @@ def _read(text, file, floating_base, motors, limits, contact, gravity):
                          " (a link has one parent joint; a closed loop is not a tree)")
         parent_of[ends["child"]] = (name, el, ends["parent"])
         children[ends["parent"]].append(ends["child"])
-        joints.append(name)
     roots = [name for name in links if name not in parent_of]
     if len(roots) != 1:
         raise _Error("no link is the root (every link is some joint's child: a cycle)" if not roots else
@@ -299,9 +300,9 @@ def _read(text, file, floating_base, motors, limits, contact, gravity):
                     raise _Error(f"{where} is a floating joint: " + (
                         "floating_base=True puts a free joint at the root, and this robot's root already floats: "
                         "drop floating_base" if floating_base else "only the root may float"))
-                joint = Free()
+                joint = Free(name=name)
             else:
-                joint = _moving(el, kind, where, limits, file)
+                joint = _moving(el, kind, where, limits, file, name)
             bodies.append(dict(joints=(joint,), parent=body, pos=pc, quat=_quat(Rc), name=child))
             k = len(bodies) - 1
             parts[k], points[k] = [], []
@@ -313,7 +314,8 @@ def _read(text, file, floating_base, motors, limits, contact, gravity):
 
     root = roots[0]
     if floating_base:
-        bodies.append(dict(joints=(Free(),), parent=WORLD, pos=np.zeros(3), quat=np.array([1.0, 0, 0, 0]), name=root))
+        bodies.append(dict(joints=(Free(name="root_joint"),), parent=WORLD, pos=np.zeros(3),
+                           quat=np.array([1.0, 0, 0, 0]), name=root))
         parts[0], points[0] = [], []
         visit(root, 0, np.eye(3), np.zeros(3))
     else:
@@ -339,7 +341,7 @@ def _read(text, file, floating_base, motors, limits, contact, gravity):
                 limits=law_limits, contact=law_contact)
 
 
-def _moving(el, kind, where, limits, file):
+def _moving(el, kind, where, limits, file, name):
     axis = _numbers(el.find("axis"), "xyz", 3, (1.0, 0.0, 0.0), f"{where} <axis>")
     if not np.linalg.norm(axis) > 0:
         raise _Error(f"{where} <axis>: xyz must not be zero")
@@ -360,4 +362,4 @@ def _moving(el, kind, where, limits, file):
             lim.get("lower") is not None and lim.get("upper") is not None:
         lo, hi = (float(_numbers(lim, a, 1, None, f"{where} <limit>")[0]) for a in ("lower", "upper"))
         rng = (lo, hi) if lo < hi else None
-    return _MOVING[kind](axis, damping=damping, range=rng)
+    return _MOVING[kind](axis, damping=damping, range=rng, name=name)

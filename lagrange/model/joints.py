@@ -56,6 +56,12 @@ def _axis(name: str, axis) -> tuple[float, float, float]:
     return tuple(0.0 if abs(x) < 1e-15 else float(x) for x in a)
 
 
+def _name(kind: str, name):
+    if name is not None and (not isinstance(name, str) or not name):
+        raise TypeError(f"{kind}.name must be a non-empty string or None, got {name!r}")
+    return name
+
+
 class AbstractJoint(eqx.Module):
     """A joint: ``nq`` coordinates, ``nv`` velocities, and per velocity its ``damping`` [N s/m or N m s/rad]
     (generalized force ``-damping qd``), ``armature`` [kg or kg m^2] (added to ``M``'s diagonal) and a spring of
@@ -128,9 +134,11 @@ class _AxisJoint(AbstractJoint):
     range: tuple[float, float] | None = eqx.field(static=True)
     ref: float = eqx.field(static=True)
     pos: tuple[float, float, float] = eqx.field(static=True)
+    name: str | None = eqx.field(static=True)
 
     def __init__(self, axis=(0.0, 0.0, 1.0), pos=(0.0, 0.0, 0.0), *, ref=0.0, damping=0.0, armature=0.0,
-                 stiffness=0.0, springref=None, range=None):
+                 stiffness=0.0, springref=None, range=None, name: str | None = None):
+        self.name = _name(type(self).__name__, name)
         name = type(self).__name__
         self.range = check_pair("range", range, owner=name)
         self.axis = _axis(name, axis)
@@ -164,6 +172,7 @@ class Hinge(_AxisJoint):
         damping, armature, stiffness: see :class:`AbstractJoint`.
         springref: the spring's rest angle [rad] (default ``ref``).
         range: ``(lower, upper)`` [rad], pressed by the tree's ``limits`` law, or ``None``; static.
+        name: the joint's name (MJCF's and URDF's), by which :meth:`lagrange.Tree.joint_index` finds it; static.
     """
 
     @classmethod
@@ -191,6 +200,7 @@ class Slide(_AxisJoint):
         damping, armature, stiffness: see :class:`AbstractJoint`.
         springref: the spring's rest displacement [m] (default ``ref``).
         range: ``(lower, upper)`` [m], pressed by the tree's ``limits`` law, or ``None``; static.
+        name: the joint's name (MJCF's and URDF's), by which :meth:`lagrange.Tree.joint_index` finds it; static.
     """
 
     @classmethod
@@ -214,6 +224,7 @@ class Ball(AbstractJoint):
         pos: the anchor [m], three numbers; static.
         damping, armature, stiffness: see :class:`AbstractJoint`, the same for each of the three velocities.
         springref: the spring's rest quaternion, shape ``(4,)`` (default the identity).
+        name: the joint's name (MJCF's and URDF's), by which :meth:`lagrange.Tree.joint_index` finds it; static.
     """
 
     nq: ClassVar[int] = 4
@@ -224,9 +235,11 @@ class Ball(AbstractJoint):
     stiffness: Float[ArrayLike, ""]
     springref: Float[ArrayLike, "4"]
     pos: tuple[float, float, float] = eqx.field(static=True)
+    name: str | None = eqx.field(static=True)
 
     def __init__(self, pos=(0.0, 0.0, 0.0), *, damping=0.0, armature=0.0, stiffness=0.0,
-                 springref=(1.0, 0.0, 0.0, 0.0)):
+                 springref=(1.0, 0.0, 0.0, 0.0), name: str | None = None):
+        self.name = _name("Ball", name)
         self.pos = _static_point("Ball.pos", pos)
         self.damping = check_array("Ball.damping", damping, nonnegative=True)
         self.armature = check_array("Ball.armature", armature, nonnegative=True)
@@ -264,6 +277,7 @@ class Free(AbstractJoint):
     Args:
         damping, armature, stiffness: see :class:`AbstractJoint`, the same for each of the six velocities.
         springref: the spring's rest coordinates, shape ``(7,)`` (default the body's pose as written).
+        name: the joint's name (MJCF's and URDF's), by which :meth:`lagrange.Tree.joint_index` finds it; static.
     """
 
     nq: ClassVar[int] = 7
@@ -273,8 +287,10 @@ class Free(AbstractJoint):
     armature: Float[ArrayLike, ""]
     stiffness: Float[ArrayLike, ""]
     springref: Float[ArrayLike, "7"] | None
+    name: str | None = eqx.field(static=True)
 
-    def __init__(self, *, damping=0.0, armature=0.0, stiffness=0.0, springref=None):
+    def __init__(self, *, damping=0.0, armature=0.0, stiffness=0.0, springref=None, name: str | None = None):
+        self.name = _name("Free", name)
         self.damping = check_array("Free.damping", damping, nonnegative=True)
         self.armature = check_array("Free.armature", armature, nonnegative=True)
         self.stiffness = check_array("Free.stiffness", stiffness, nonnegative=True)

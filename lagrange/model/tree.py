@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
+from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -29,7 +30,7 @@ from lagrange.model.joints import AbstractJoint, Free, Hinge, Slide
 from lagrange.model.limits import PenaltyLimits
 from lagrange.model.plane import normal
 
-__all__ = ["Body", "Motor", "Tree", "WORLD"]
+__all__ = ["AffineActuator", "Body", "Motor", "Tree", "WORLD"]
 
 WORLD = -1
 """The ``parent`` of a body that hangs from the world."""
@@ -144,6 +145,65 @@ class Motor(eqx.Module):
                 raise ValueError(f"Motor.control_range must be finite with lo < hi, got {control_range!r}")
             control_range = (lo, hi)
         self.control_range = control_range
+
+    state_dependent: ClassVar[bool] = False
+    """Whether the force depends on the joint's position or velocity (then only the general algorithms add it)."""
+
+    def force(self, u, length, velocity):
+        """The actuator's force before ``gear``: the clamped control ``u`` itself."""
+        return u
+
+
+class AffineActuator(Motor):
+    """An actuator whose force is affine in its control, its length and its velocity (MuJoCo's ``<general>`` with
+    ``gaintype="fixed"`` and ``biastype="affine"``; ``<position>`` and ``<velocity>`` are such actuators).
+
+    On joint ``j`` with ``length = gear * q_j`` and ``velocity = gear * qd_j``, the actuator's force is
+    ``f = gain * u + bias[0] + bias[1] * length + bias[2] * velocity``, ``u`` first clamped into ``control_range`` and
+    ``f`` then into ``force_range`` where given, and its generalized force ``gear * f`` (MuJoCo's ``qfrc_actuator``).
+    A plain :class:`Motor` is the one with ``gain = 1`` and no bias. The general rigid-body algorithms add these
+    forces; a planar tree with one runs on them (:func:`lagrange.dynamics.backend`).
+
+    Args:
+        joint, gear, control_range: as for :class:`Motor`.
+        gain: MuJoCo's ``gainprm[0]``.
+        bias: ``(b0, b1, b2)``, MuJoCo's ``biasprm[:3]``.
+        force_range: ``(lo, hi)`` or ``None`` (MuJoCo's ``forcerange`` where ``forcelimited``); static.
+    """
+
+    gain: Float[Array, ""]
+    bias: Float[Array, "3"]
+    force_range: tuple[float, float] | None = eqx.field(static=True)
+    state_dependent: ClassVar[bool] = True
+
+    def __init__(self, joint: int, gear: Float[ArrayLike, ""] = 1.0, control_range=None, *,
+                 gain: Float[ArrayLike, ""] = 1.0, bias: Float[ArrayLike, "3"] = (0.0, 0.0, 0.0), force_range=None):
+        super().__init__(joint, gear, control_range)
+        self.gain = check_array("AffineActuator.gain", gain)
+        self.bias = check_array("AffineActuator.bias", bias, (3,))
+        if force_range is not None:
+            lo, hi = (float(x) for x in force_range)
+            if not (lo < hi) or np.isnan(lo) or np.isnan(hi):
+                raise ValueError(f"AffineActuator.force_range must have lo < hi, got {force_range!r}")
+            force_range = (lo, hi)
+        self.force_range = force_range
+
+    @classmethod
+    def position(cls, joint: int, kp: float, kv: float = 0.0, **kw) -> AffineActuator:
+        """MuJoCo's ``<position kp kv>``: ``f = kp (u - length) - kv velocity``, ``u`` the target position."""
+        return cls(joint, gain=kp, bias=(0.0, -kp, -kv), **kw)
+
+    @classmethod
+    def velocity(cls, joint: int, kv: float, **kw) -> AffineActuator:
+        """MuJoCo's ``<velocity kv>``: ``f = kv (u - velocity)``, ``u`` the target velocity."""
+        return cls(joint, gain=kv, bias=(0.0, 0.0, -kv), **kw)
+
+    def force(self, u, length, velocity):
+        """The actuator's force ``f`` (before ``gear``) at the clamped control ``u``, ``(...)``."""
+        f = self.gain * u + self.bias[0] + self.bias[1] * length + self.bias[2] * velocity
+        if self.force_range is not None:
+            f = jnp.clip(f, *(jnp.asarray(x, f.dtype) for x in self.force_range))
+        return f
 
 
 class Tree(eqx.Module):
@@ -310,6 +370,29 @@ class Tree(eqx.Module):
                 else:
                     out.append(j.neutral())
         return jnp.asarray(np.concatenate(out))
+
+    def joint_index(self, name: str) -> int:
+        """The index in :attr:`joints` of the joint named ``name`` (its coordinates start at ``qadr[k]``, its
+        velocities at ``vadr[k]``).
+
+        Raises:
+            KeyError: naming the tree's joint names, where none is ``name``.
+        """
+        names = [j.name for j in self.joints]
+        if name not in names:
+            raise KeyError(f"the tree has no joint named {name!r}; its joints: {[n for n in names if n]}")
+        return names.index(name)
+
+    def body_index(self, name: str) -> int:
+        """The index in :attr:`bodies` of the body named ``name``.
+
+        Raises:
+            KeyError: naming the tree's body names, where none is ``name``.
+        """
+        names = [b.name for b in self.bodies]
+        if name not in names:
+            raise KeyError(f"the tree has no body named {name!r}; its bodies: {[n for n in names if n]}")
+        return names.index(name)
 
     def subtree(self, i: int) -> tuple[int, ...]:
         """Body ``i`` and every body below it, in order; static."""

@@ -38,7 +38,9 @@ class AbstractPlanar(AbstractBackend):
     def damping(self):
         return self.chain.damping
 
-    def actuation(self, u):
+    state_dependent_actuation: ClassVar[bool] = False  # the lowering carries motors only
+
+    def actuation(self, u, q=None, qd=None):
         if u is None or not self.chain.m:
             return None
         return jnp.einsum("ij,...j->...i", actuation_matrix(self.chain), clamp_controls(self.chain, u))

@@ -87,7 +87,7 @@ def forward_dynamics(tree: Tree, q, qd, u=None, implicit_damping_dt=None, *, piv
     ``implicit_damping_dt = h``)."""
     q, qd, u = _broadcast(q, qd, None if u is None or tree.m == 0 else u)
     k = Kinematics(tree, q, qd)
-    rhs = _total(-rnea(k, external=_total(external, _external(k))), actuation(tree, u), passive(tree, q, qd),
+    rhs = _total(-rnea(k, external=_total(external, _external(k))), actuation(tree, u, q, qd), passive(tree, q, qd),
                  limit_forces(tree, q, qd))
     M = crba(k)
     damping = per_dof(tree, "damping")

@@ -60,8 +60,12 @@ class General(AbstractBackend):
     def energy(self, q, qd):
         return rbda.energy(self.tree, *_arrays(q, qd))
 
-    def actuation(self, u):
-        return actuation(self.tree, u)
+    @property
+    def state_dependent_actuation(self) -> bool:
+        return any(mo.state_dependent for mo in self.tree.motors)
+
+    def actuation(self, u, q=None, qd=None):
+        return actuation(self.tree, u, q, qd)
 
     def spring_forces(self, q):
         springs = passive(self.tree, q, None)

@@ -64,12 +64,23 @@ def spring_potential(tree: Tree, q):
     return sum(terms[1:], terms[0]) if terms else None
 
 
-def actuation(tree: Tree, u):
-    """``B u``, ``u`` clamped into the motors' ranges first, ``(..., nv)``; ``None`` without control."""
+def actuation(tree: Tree, u, q=None, qd=None):
+    """The actuators' generalized forces (MuJoCo's ``qfrc_actuator``), ``(..., nv)``: ``B u`` with ``u`` clamped into
+    the motors' ranges first, and for an actuator whose force depends on its joint's state
+    (:class:`lagrange.model.tree.AffineActuator`) ``gear * force(u, gear q_j, gear qd_j)``; ``None`` without control."""
     if u is None or tree.m == 0:
         return None
     u = clamp_controls(tree, u)
-    return jnp.einsum("ij,...j->...i", actuation_matrix(tree).astype(u.dtype), u)
+    if not any(mo.state_dependent for mo in tree.motors):
+        return jnp.einsum("ij,...j->...i", actuation_matrix(tree).astype(u.dtype), u)
+    forces = []
+    for k, mo in enumerate(tree.motors):
+        qa, va = tree.qadr[mo.joint], tree.vadr[mo.joint]
+        gear = jnp.asarray(mo.gear, u.dtype)
+        forces.append(gear * mo.force(u[..., k], gear * q[..., qa], gear * qd[..., va]))
+    E = np.zeros((tree.nv, tree.m))
+    E[list(tree.actuated), np.arange(tree.m)] = 1.0
+    return jnp.einsum("ik,...k->...i", jnp.asarray(E, u.dtype), jnp.stack(jnp.broadcast_arrays(*forces), -1))
 
 
 def _limited(tree: Tree):

@@ -182,7 +182,9 @@ def from_mjcf(source, *, limits: str | PenaltyLimits = "raise", contact: str | P
     data = mujoco.MjData(model)
     data.qpos[:] = 0.0
     mujoco.mj_kinematics(model, data)
-    plane = None if tree else _planar(mujoco, model, data)
+    servo = any(model.actuator_biastype[a] != mujoco.mjtBias.mjBIAS_NONE or model.actuator_forcelimited[a]
+                for a in range(model.nu))  # only a tree carries them: a planar model with them is read as one
+    plane = None if tree or (servo and tree is None) else _planar(mujoco, model, data)
     if plane is None and tree is not False:
         refuse(mujoco, model, limits, contact, planar=False)
         return tree_from_model(mujoco, model, limits, contact)

@@ -17,9 +17,10 @@ def element_name(mujoco, model, kind, i) -> str:
 def refuse(mujoco, model, limits, contact, *, planar: bool) -> None:
     """Raise for whatever the chain (``planar``) or the tree cannot reproduce exactly, naming the feature, the
     element and the way out. Both: friction loss, force-carrying tendons, equality constraints, gravity compensation,
-    fluid forces, actuators other than motors with a positive gear on a hinge or slide, two motors on one joint,
+    fluid forces, actuators other than motors (a tree: or affine actuators) with a positive gear on a hinge or slide,
+    a joint's actuatorfrcrange, two actuators on one joint,
     limited joints and tendons with ``limits="raise"``, touching geoms with ``contact="raise"``. A chain also: ball and
-    free joints, motors out of joint order."""
+    free joints, motors out of joint order, actuators with a bias or a force range."""
     off = model.opt.disableflags
     bit = mujoco.mjtDisableBit
     constraints = not off & bit.mjDSBL_CONSTRAINT
@@ -72,22 +73,42 @@ def refuse(mujoco, model, limits, contact, *, planar: bool) -> None:
     if off & bit.mjDSBL_ACTUATION and model.nu:
         raise NotImplementedError("from_mjcf: actuation is disabled (<flag actuation=\"disable\"/>) but the model has "
                                   "actuators; remove them or enable actuation")
+    driven = {int(model.actuator_trnid[a, 0]) for a in range(model.nu)
+              if model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT}
+    for j in np.flatnonzero(model.jnt_actfrclimited):  # without an actuator on the joint it clamps nothing
+        if int(j) in driven:
+            raise NotImplementedError(f"from_mjcf: {nm('joint', int(j))} has an actuatorfrcrange; a tree clamps each "
+                                      "actuator's force (forcerange), not a joint's sum: give the actuator a "
+                                      "forcerange")
     for a in range(model.nu):
-        motor = (
-            model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
-            and model.actuator_dyntype[a] == mujoco.mjtDyn.mjDYN_NONE
-            and model.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_FIXED
-            and model.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_NONE
-        )
-        if not motor:
+        on_joint = (model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
+                    and model.actuator_dyntype[a] == mujoco.mjtDyn.mjDYN_NONE
+                    and model.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_FIXED)
+        motor = on_joint and model.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_NONE
+        affine = on_joint and model.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_AFFINE
+        if planar and not motor:
             raise NotImplementedError(
                 f"from_mjcf: {nm('actuator', a)} is not a motor on a joint (force = gain * ctrl, no dynamics, "
-                "no bias); a chain's actuators are motors: replace it with <motor joint=... gear=...>"
+                "no bias); a chain's actuators are motors: replace it with <motor joint=... gear=...>, or read the "
+                "model as a tree (tree=True), which takes <position>, <velocity> and affine <general> actuators"
             )
-        if model.actuator_forcelimited[a]:
+        if not (motor or affine):
+            raise NotImplementedError(
+                f"from_mjcf: {nm('actuator', a)} is neither a motor nor an affine actuator on a joint (a fixed gain, "
+                "a bias affine in the joint's position and velocity, no activation dynamics): a tree takes <motor>, "
+                "<position>, <velocity> and <general gaintype=\"fixed\" biastype=\"affine\"> on hinges and slides; "
+                "tendon, site and body transmissions and activation dynamics (<intvelocity>, filters, muscles) are "
+                "not modelled"
+            )
+        if planar and model.actuator_forcelimited[a]:
             raise NotImplementedError(f"from_mjcf: {nm('actuator', a)} is force-limited; the chain clamps controls "
-                                      "(ctrlrange) but not forces: remove forcerange or express it as a ctrlrange")
-        if model.actuator_gear[a, 0] * model.actuator_gainprm[a, 0] <= 0:
+                                      "(ctrlrange) but not forces: remove forcerange, express it as a ctrlrange, or "
+                                      "read the model as a tree (tree=True), which clamps forces")
+        if affine or model.actuator_forcelimited[a]:
+            if model.actuator_gear[a, 0] <= 0:
+                raise NotImplementedError(f"from_mjcf: {nm('actuator', a)} has gear {model.actuator_gear[a, 0]}; an "
+                                          "actuator's gear is > 0: flip the joint's axis and the actuator's gains")
+        elif model.actuator_gear[a, 0] * model.actuator_gainprm[a, 0] <= 0:
             raise NotImplementedError(
                 f"from_mjcf: {nm('actuator', a)} has gear * gain = "
                 f"{model.actuator_gear[a, 0] * model.actuator_gainprm[a, 0]}"

@@ -2,8 +2,10 @@
 
 The compiled ``mujoco.MjModel`` maps one to one: a body per body (its ``pos``, ``quat``, mass, centre of mass and
 inertia turned by ``iquat``), its joints in order with their axes, anchors, ``ref`` (``qpos0``), damping, armature and
-springs, and a :class:`~lagrange.model.tree.Motor` per motor (``gear * gain``, ``ctrlrange`` where ``ctrllimited``), so
-that ``q``, ``qd`` and ``u`` are ``qpos``, ``qvel`` and ``ctrl``.
+springs, a :class:`~lagrange.model.tree.Motor` per motor (``gear * gain``, ``ctrlrange`` where ``ctrllimited``) and an
+:class:`~lagrange.model.tree.AffineActuator` per ``<position>``, ``<velocity>``, affine ``<general>`` or force-limited
+actuator (``gainprm[0]``, ``biasprm[:3]``, ``forcerange`` where ``forcelimited``), so that ``q``, ``qd`` and ``u`` are
+``qpos``, ``qvel`` and ``ctrl``.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from lagrange.model.contact import PenaltyContact
 from lagrange.interop.mjcf.refusals import element_name, geom_points, ground_geoms, ground_plane, is_limited
 from lagrange.model.joints import Ball, Free, Hinge, Slide
 from lagrange.model.limits import PenaltyLimits
-from lagrange.model.tree import Body, Motor, Tree
+from lagrange.model.tree import AffineActuator, Body, Motor, Tree
 
 __all__ = ["tree_from_model"]
 
@@ -39,7 +41,8 @@ def _joint(mujoco, model, j, limits):
     bit = mujoco.mjtDisableBit
     damping = float(model.dof_damping[d]) if not off & bit.mjDSBL_DAMPER else 0.0
     stiffness = float(model.jnt_stiffness[j]) if not off & bit.mjDSBL_SPRING else 0.0
-    common = dict(damping=damping, armature=float(model.dof_armature[d]), stiffness=stiffness)
+    name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or None
+    common = dict(damping=damping, armature=float(model.dof_armature[d]), stiffness=stiffness, name=name)
     if kind in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
         cls = Hinge if kind == mujoco.mjtJoint.mjJNT_HINGE else Slide
         return cls(_clean(model.jnt_axis[j]), _clean(model.jnt_pos[j]), ref=float(model.qpos0[a]),
@@ -88,8 +91,15 @@ def tree_from_model(mujoco, model, limits="ignore", contact="ignore") -> Tree:
     for a in range(model.nu):
         control_range = (tuple(float(x) for x in model.actuator_ctrlrange[a])
                          if clamp and model.actuator_ctrllimited[a] else None)
-        motors.append(Motor(int(model.actuator_trnid[a, 0]), float(model.actuator_gear[a, 0]
-                                                                  * model.actuator_gainprm[a, 0]), control_range))
+        joint, gear = int(model.actuator_trnid[a, 0]), float(model.actuator_gear[a, 0])
+        gain, limited = float(model.actuator_gainprm[a, 0]), bool(model.actuator_forcelimited[a])
+        affine = model.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_AFFINE
+        if affine or limited:
+            bias = _clean(model.actuator_biasprm[a, :3]) if affine else np.zeros(3)
+            force_range = tuple(float(x) for x in model.actuator_forcerange[a]) if limited else None
+            motors.append(AffineActuator(joint, gear, control_range, gain=gain, bias=bias, force_range=force_range))
+        else:
+            motors.append(Motor(joint, gear * gain, control_range))
     law = None
     if points:
         law = PenaltyContact(contact.ke, contact.kd, contact.kf, contact.mu, height)

@@ -38,7 +38,7 @@ import jax
 import numpy as np
 
 from lagrange.model.joints import Ball, Free, Hinge, Slide
-from lagrange.model.tree import WORLD, Tree, check_tree
+from lagrange.model.tree import WORLD, AffineActuator, Tree, check_tree
 
 INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
 """The MuJoCo integrators :func:`to_mjcf` accepts (Brax loads only ``"Euler"``)."""
@@ -151,8 +151,15 @@ def to_mjcf(
         for k, mo in enumerate(tree.motors):
             r = mo.control_range
             limit = 'ctrllimited="false"' if r is None else f'ctrllimited="true" ctrlrange="{_vec(r)}"'
-            lines.append(f'    <motor name="u{k}" joint="q{mo.joint}" gear="{_num(_concrete(mo.gear, "Motor.gear"))}" '
-                         f'{limit} forcelimited="false"/>')
+            gear = _num(_concrete(mo.gear, "Motor.gear"))
+            if not isinstance(mo, AffineActuator):
+                lines.append(f'    <motor name="u{k}" joint="q{mo.joint}" gear="{gear}" {limit} forcelimited="false"/>')
+                continue
+            f = mo.force_range
+            force = 'forcelimited="false"' if f is None else f'forcelimited="true" forcerange="{_vec(f)}"'
+            lines.append(f'    <general name="u{k}" joint="q{mo.joint}" gear="{gear}" {limit} {force} gaintype="fixed" '
+                         f'gainprm="{_num(_concrete(mo.gain, "AffineActuator.gain"))}" biastype="affine" '
+                         f'biasprm="{_vec(_concrete(mo.bias, "AffineActuator.bias"))}"/>')
         lines.append("  </actuator>")
     lines.append("</mujoco>")
     return "\n".join(lines) + "\n"

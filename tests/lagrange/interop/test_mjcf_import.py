@@ -300,12 +300,18 @@ HINGE = '<joint name="j1" type="hinge" axis="0 1 0"/>'
 GC = '<geom name="gc" type="sphere" size="0.1" pos="0 0 -1"/>'  # on the tip of link b, colliding by default
 GW = '<geom name="gw" type="plane" size="5 5 1" pos="0 0 -3"/>'  # a floor
 
-SPATIAL = [  # what only a spatial tree holds: a Tree by default, refused when a chain is asked for (tree=False)
+SPATIAL = [  # what only a tree holds (3-D joints, affine or force-limited actuators): a Tree by default,
+    # refused when a chain is asked for (tree=False)
     ("ball joint", _chain_xml('<joint name="j1" type="ball"/>'), "joint 'j1' is a ball joint"),
     ("free joint", _chain_xml('<freejoint name="j1"/>'), "joint 'j1' is a free joint"),
     ("tilted hinge", _chain_xml('<joint name="j1" type="hinge" axis="1 1 0"/>'), "not parallel.*leaves the plane"),
     ("slide out of plane", _chain_xml('<joint name="j1" type="slide" axis="0 1 0"/>'),
      "joint 'j1' slides along .* out of the plane"),
+    ("position servo", _chain_xml(HINGE, model_extra='<actuator><position name="p" joint="j1" kp="10"/></actuator>'),
+     "actuator 'p' is not a motor.*tree=True"),
+    ("force limit", _chain_xml(HINGE,
+                               model_extra='<actuator><motor name="m" joint="j1" forcerange="-1 1"/></actuator>'),
+     "actuator 'm' is force-limited"),
 ]
 
 
@@ -327,11 +333,6 @@ REFUSALS = [
      NotImplementedError, "tendon 't'"),
     ("equality", _chain_xml(HINGE, model_extra='<equality><joint name="eq" joint1="j1" joint2="j2"/></equality>'),
      NotImplementedError, "equality 'eq'"),
-    ("position servo", _chain_xml(HINGE, model_extra='<actuator><position name="p" joint="j1" kp="10"/></actuator>'),
-     NotImplementedError, "actuator 'p' is not a motor"),
-    ("force limit", _chain_xml(HINGE,
-                               model_extra='<actuator><motor name="m" joint="j1" forcerange="-1 1"/></actuator>'),
-     NotImplementedError, "actuator 'm' is force-limited"),
     ("negative gear", _chain_xml(HINGE, model_extra='<actuator><motor name="m" joint="j1" gear="-2"/></actuator>'),
      NotImplementedError, "actuator 'm' has gear \\* gain = -2"),
     ("actuator order", _chain_xml(HINGE, model_extra='<actuator><motor name="m2" joint="j2"/><motor name="m1" '

@@ -48,6 +48,11 @@ def test_q_is_mujocos_qpos_and_the_forces_are_its_own():
     model = mujoco.MjModel.from_xml_path(str(ARM))  # MuJoCo discards a URDF's visuals: it compiles this one
     assert [model.joint(i).name for i in range(model.njnt)] == ["shoulder", "elbow", "extend", "side_joint"]
     assert [b.name for b in tree.bodies] == ["upper", "fore", "slider", "side"]
+    assert [j.name for j in tree.joints] == [model.joint(i).name for i in range(model.njnt)]
+    assert tree.joint_index("extend") == 2 and tree.body_index("side") == 3
+    assert _read(floating_base=True).joint_index("root_joint") == 0
+    with pytest.raises(KeyError, match=r"no joint named 'knee'; its joints: \['shoulder', 'elbow'"):
+        tree.joint_index("knee")
     rng = np.random.default_rng(3)
     q, qd = rng.uniform(-1, 1, 4), rng.uniform(-1, 1, 4)
     M, bias, _ = mujoco_terms(model, q, qd, np.zeros(model.nu))
