@@ -2,6 +2,7 @@
 
     python -m benchmarks.urdf_robots                 # every robot, fixed and floating base (about 10 minutes)
     python -m benchmarks.urdf_robots --only go2 panda
+    python -m benchmarks.urdf_robots --speed-only     # a 7-dof arm and a 12-dof quadruped beside MuJoCo C, Pinocchio
 
 For each ``.urdf`` of the package that Pinocchio reads with at least one joint, with its root welded and with a free
 joint at the root (Pinocchio's ``JointModelFreeFlyer``): the mass matrix, the gravity forces and the velocity products
@@ -143,11 +144,71 @@ def mujoco_reads(path: pathlib.Path) -> str | None:
         return f"{type(e).__name__}: {str(e).splitlines()[0][:120]}"
 
 
+SPEED = {"xarm7 (fixed base)": ("xarm_description/urdf/xarm7.urdf", False),
+         "go1 (floating base, free flight)": ("go1_description/urdf/go1.urdf", True)}
+
+
+def speed(B: int = 1024, T: int = 20, dt: float = 0.002) -> list[dict]:
+    """Microseconds per env-step of a 7-dof arm and a 12-dof quadruped (float64, semi-implicit Euler, no contact):
+    lagrange's jitted ``jax.vmap`` of ``simulate`` (with :func:`lagrange.compiler_options`) beside MuJoCo C
+    (``mujoco.rollout``, 2 threads, Euler, on the same tree written by ``to_mjcf``) and Pinocchio's ABA (one call
+    per step, from Python: its per-call overhead included)."""
+    import mujoco
+
+    from benchmarks._engines import MujocoC
+    from benchmarks._timing import median_time
+    from lagrange.interop.mjcf import to_mjcf
+
+    import pinocchio as pin
+
+    rows, root = [], package_root()
+    for name, (rel, floating) in SPEED.items():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            tree = from_urdf(root / rel, floating_base=floating)
+        model = mujoco.MjModel.from_xml_string(to_mjcf(tree, timestep=dt, integrator="Euler"))
+        rng = np.random.default_rng(0)
+        q0 = np.asarray(tree.neutral()) + rng.uniform(-0.3, 0.3, (B, tree.nq))
+        if floating:
+            q0[:, 3:7] /= np.linalg.norm(q0[:, 3:7], axis=1, keepdims=True)
+        qd0, us = rng.uniform(-1, 1, (B, tree.nv)), rng.uniform(-1, 1, (B, T, tree.m))
+
+        def final(q, qd, u):
+            traj = lg.simulate(tree, q, qd, u, dt, lg.SemiImplicitEuler(), check=False)
+            return traj.q[-1], traj.qd[-1]
+
+        forward = jax.jit(jax.vmap(final), compiler_options=lg.compiler_options(tree))
+        args = tuple(jnp.asarray(x) for x in (q0, qd0, us))
+        jax.block_until_ready(forward(*args))
+        ours = median_time(forward, *args, repeats=3, best=True) / (B * T)
+        run = MujocoC(model, dt).make(q0, qd0, us)
+        theirs = median_time(run, repeats=3, best=True) / (B * T)
+        qpos = run()[:, -1, 1: 1 + tree.nq]
+        pmodel = (pin.buildModelFromUrdf(str(root / rel), pin.JointModelFreeFlyer()) if floating
+                  else pin.buildModelFromUrdf(str(root / rel)))
+        pdata, q, v = pmodel.createData(), pin.neutral(pmodel), rng.uniform(-1, 1, pmodel.nv)
+        aba = median_time(lambda: [pin.aba(pmodel, pdata, q, v, v) for _ in range(2000)], repeats=3, best=True) / 2000
+        rows.append(dict(robot=name, nq=tree.nq, nv=tree.nv, batch=B, steps=T, lagrange_us=ours * 1e6,
+                         mujoco_c_us=theirs * 1e6, pinocchio_aba_us=aba * 1e6, lagrange_over_mujoco=theirs / ours,
+                         final_qpos_max_abs_diff_to_mujoco=float(np.max(np.abs(np.asarray(forward(*args)[0]) - qpos)))))
+        print(f"{name}: lagrange {ours * 1e6:.2f} us, MuJoCo C {theirs * 1e6:.2f} us, Pinocchio ABA "
+              f"{aba * 1e6:.2f} us per env-step", flush=True)
+    return rows
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", nargs="*", help="robots whose file name contains one of these")
     ap.add_argument("--out", type=pathlib.Path, default=OUT)
+    ap.add_argument("--speed-only", action="store_true", help="only the arm's and the quadruped's speed")
     args = ap.parse_args(argv)
+    if args.speed_only:
+        rows = speed()
+        write_json(args.out.with_name("urdf_speed.json"), dict(rows=rows))
+        args.out.with_name("urdf_speed.md").write_text(
+            "`python -m benchmarks.urdf_robots --speed-only` (float64, B = 1024, 20 steps of 2 ms, semi-implicit Euler,"
+            " no contact; us per env-step; 2 cores)\n\n" + markdown_table(rows, list(rows[0])))
+        return
     import pinocchio as pin
 
     root = package_root()

@@ -213,3 +213,13 @@ def test_locomotion_examples_run_and_write_their_results(tmp_path, help_texts):
         out = help_texts[example]
         for flag in ("--seed", "--iterations", "--out", "--resume", "--quick", "--no-progress", "--overwrite"):
             assert flag in out, (example, flag)
+
+
+def test_the_quadruped_stands(tmp_path):
+    """examples/quadruped_stand.py on its --quick half second: the robot read from URDF with a floating base lands on
+    its feet and stands under the position actuators; results.json and the figure."""
+    _run("--quick", "--out", str(tmp_path), example="quadruped_stand.py")
+    res = json.loads((tmp_path / "results.json").read_text())
+    assert res["stood"] and (res["nq"], res["nv"]) == (19, 18) and res["seconds"] == 0.5
+    assert 0.2 < res["final_height"] < res["start_height"] and res["final_tilt"] < 0.1
+    assert Image.open(tmp_path / "stand.png").size[0] > 300

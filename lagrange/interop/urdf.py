@@ -39,6 +39,7 @@ from __future__ import annotations
 import pathlib
 import warnings
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -186,7 +187,7 @@ def _check_inertia(name, mass, J, file):
 
 def from_urdf(source, *, floating_base: bool = False, motors: bool = True,
               limits: str | PenaltyLimits = "ignore", contact: PenaltyContact | None = None,
-              gravity=(0.0, 0.0, -9.81)) -> Tree:
+              contact_links: Sequence[str] | None = None, gravity=(0.0, 0.0, -9.81)) -> Tree:
     """A URDF robot as a :class:`~lagrange.model.tree.Tree` (the module docstring says how), its meshes never opened.
 
     Args:
@@ -199,6 +200,8 @@ def from_urdf(source, *, floating_base: bool = False, motors: bool = True,
             that presses them.
         contact: ``None``, or a :class:`lagrange.PenaltyContact` pressing the collision spheres, boxes and cylinders
             against the ground.
+        contact_links: with ``contact``, the links whose collision geometry gives contact points (a quadruped's
+            feet); ``None``: every link's.
         gravity: the world's gravity vector [m/s^2].
 
     Returns:
@@ -223,12 +226,12 @@ def from_urdf(source, *, floating_base: bool = False, motors: bool = True,
     if contact is not None and not isinstance(contact, PenaltyContact):
         raise TypeError(f"from_urdf: contact must be None or a lagrange.PenaltyContact, got {type(contact).__name__}")
     try:
-        return _read(text, file, floating_base, motors, limits, contact, gravity)
+        return _read(text, file, floating_base, motors, limits, contact, contact_links, gravity)
     except _Error as e:
         raise ValueError(f"from_urdf: {file}: {e}") from None
 
 
-def _read(text, file, floating_base, motors, limits, contact, gravity):
+def _read(text, file, floating_base, motors, limits, contact, contact_links, gravity):
     try:
         robot = ET.fromstring(text)
     except ET.ParseError as e:
@@ -265,6 +268,9 @@ def _read(text, file, floating_base, motors, limits, contact, gravity):
                          " (a link has one parent joint; a closed loop is not a tree)")
         parent_of[ends["child"]] = (name, el, ends["parent"])
         children[ends["parent"]].append(ends["child"])
+    missing = sorted(set(contact_links or ()) - set(links))
+    if missing:
+        raise _Error(f"contact_links names links that do not exist: {missing}")
     roots = [name for name in links if name not in parent_of]
     if len(roots) != 1:
         raise _Error("no link is the root (every link is some joint's child: a cycle)" if not roots else
@@ -284,7 +290,7 @@ def _read(text, file, floating_base, motors, limits, contact, gravity):
         J = np.where(np.abs(J) < floor, 0.0, J)  # the file's round-off (1e-20 beside 1e-5) read as zero
         if body != WORLD:
             parts[body].append((m, R @ c + p, R @ J @ R.T))
-            if contact is not None:
+            if contact is not None and (contact_links is None or link in contact_links):
                 points[body] += _points(links[link], R, p, where)
         for child in children[link]:
             name, el, _ = parent_of[child]

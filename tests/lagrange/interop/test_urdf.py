@@ -9,12 +9,14 @@ a box and a sphere for collision. The whole of ``example-robot-data`` is ``pytho
 import pathlib
 import warnings
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import lagrange as lg
 from lagrange.interop.urdf import from_urdf
+from lagrange.kinematics import contact_point_positions
 from tests.helpers import mujoco_terms, rel
 
 ARM = pathlib.Path(__file__).resolve().parents[2] / "assets" / "arm.urdf"
@@ -119,3 +121,32 @@ def test_a_root_that_already_floats_and_mesh_collisions_are_refused():
     with pytest.raises(NotImplementedError, match=r"<link name=\"slider\"> <collision> 0: a <mesh> collision"):
         _read(mesh, contact=lg.PenaltyContact(2e4, 1e3, 1e3, 0.9))
     assert _read(mesh).nv == 4  # without contact the mesh is never opened
+
+
+def test_a_floating_quadruped_on_the_ground_differentiates_as_central_differences():
+    """The example's quadruped (floating base, the feet's spheres on the ground, position actuators) dropped onto the
+    ground: the gradient of a short rollout's final trunk height with respect to the actuators' targets, forward mode,
+    equals central differences."""
+    quadruped = ARM.parents[2] / "examples" / "assets" / "quadruped.urdf"
+    feet = ["FL_foot", "FR_foot", "HL_foot", "HR_foot"]
+    tree = from_urdf(quadruped, floating_base=True, motors=False, contact=lg.PenaltyContact(2e4, 2e3, 1e2, 0.9),
+                     contact_links=feet)
+    tree = lg.Tree(tree.bodies, tree.gravity, motors=[lg.AffineActuator.position(k, 80.0, 2.0) for k in range(1, 13)],
+                   contact=tree.contact)
+    q0 = np.array(tree.neutral(), float)
+    q0[7:] = np.tile([0.0, 0.8, -1.6], 4)
+    q0[2] = 0.29  # the feet's spheres a few mm into the ground
+    targets = jnp.asarray(np.tile(q0[7:], (4, 1)))
+
+    @jax.jit
+    def height(targets):
+        traj = lg.simulate(tree, jnp.asarray(q0), jnp.zeros(tree.nv), targets, 0.005, lg.SemiImplicitEuler(), 2)
+        return traj.q[-1, 2]
+
+    touching = np.asarray(contact_point_positions(tree, jnp.asarray(q0)))[:, 2] < 0.02
+    assert touching.all()
+    e = np.zeros(targets.shape)
+    e[0, 1], e[1, 5], e[2, 10] = 1.0, -0.5, 0.7  # thighs and a calf
+    _, slope = jax.jvp(height, (targets,), (jnp.asarray(e),))
+    fd = (height(targets + 1e-6 * e) - height(targets - 1e-6 * e)) / 2e-6
+    assert abs(float(slope) - float(fd)) <= 1e-6 * max(1e-3, abs(float(fd))), (float(slope), float(fd))
