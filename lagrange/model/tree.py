@@ -378,10 +378,7 @@ class Tree(eqx.Module):
         Raises:
             KeyError: naming the tree's joint names, where none is ``name``.
         """
-        names = [j.name for j in self.joints]
-        if name not in names:
-            raise KeyError(f"the tree has no joint named {name!r}; its joints: {[n for n in names if n]}")
-        return names.index(name)
+        return _index("joint", [j.name for j in self.joints], name)
 
     def body_index(self, name: str) -> int:
         """The index in :attr:`bodies` of the body named ``name``.
@@ -389,10 +386,7 @@ class Tree(eqx.Module):
         Raises:
             KeyError: naming the tree's body names, where none is ``name``.
         """
-        names = [b.name for b in self.bodies]
-        if name not in names:
-            raise KeyError(f"the tree has no body named {name!r}; its bodies: {[n for n in names if n]}")
-        return names.index(name)
+        return _index("body", [b.name for b in self.bodies], name)
 
     def subtree(self, i: int) -> tuple[int, ...]:
         """Body ``i`` and every body below it, in order; static."""
@@ -401,6 +395,14 @@ class Tree(eqx.Module):
             if self.parents[k] in out:
                 out.append(k)
         return tuple(out)
+
+
+def _index(kind: str, names: list, name: str) -> int:
+    """The position of ``name`` among the tree's ``names`` of ``kind`` (``"joint"``, ``"body"``)."""
+    if name not in names:
+        plural = "bodies" if kind == "body" else f"{kind}s"
+        raise KeyError(f"the tree has no {kind} named {name!r}; its {plural}: {[n for n in names if n]}")
+    return names.index(name)
 
 
 def check_tree(model, name: str = "the model") -> None:
