@@ -1,10 +1,12 @@
 """A quadruped read from URDF with a floating base, dropped on the ground, standing under PD position actuators.
 
-``from_urdf`` reads the robot (``floating_base=True``), its feet's spheres press the ground (``PenaltyContact``) and
-each joint gets MuJoCo's ``<position kp kv>`` (``AffineActuator.position``), its target the standing pose. Dropped 5
-cm in that pose, it has stood if its trunk ends above half its start height, tilted < 0.3 rad. The robot:
-``examples/assets/quadruped.urdf`` (12 dof, Go1's proportions, 15.4 kg), or e.g. Go1 from ``example-robot-data``
-(``--urdf .../go1.urdf --feet FL_foot FR_foot RL_foot RR_foot``). Writes ``results.json`` and ``stand.png``.
+``from_urdf`` reads the robot as it ships (``floating_base=True``), a sphere on each foot presses the ground
+(``PenaltyContact``; the feet's collision geometry is a mesh, so their points are given by hand) and each joint gets
+MuJoCo's ``<position kp kv>`` (``AffineActuator.position``), its target the standing pose. Dropped 5 cm in that pose,
+it has stood if its trunk ends above half its start height, tilted < 0.3 rad. The robot: ODRI's Solo12 from
+``example-robot-data`` (``examples/assets/solo12.urdf``, 12 dof, 2.5 kg), or another, e.g. Go1 (``--urdf
+.../go1.urdf --feet FL_foot FR_foot RL_foot RR_foot --foot-radius 0.02 --pose 0 0.9 -1.8 --kp 80 --kv 2 --ke 2e4``).
+Writes ``results.json`` and ``stand.png``.
 
     python examples/quadruped_stand.py [--seconds 2] [--out runs/quadruped_stand] [--quick]
 """
@@ -27,10 +29,9 @@ DT, SUBSTEPS = 0.01, 10  # targets at 100 Hz, semi-implicit Euler at 1 kHz
 
 def main(args):
     jax.config.update("jax_enable_x64", True)
-    tree = from_urdf(args.urdf, floating_base=True, motors=False, contact=lg.PenaltyContact(2e4, 2e3, 1e2, 0.9),
-                     contact_links=args.feet)
-    servos = [lg.AffineActuator.position(k, args.kp, args.kv) for k in range(1, len(tree.joints))]  # 0: the base
-    tree = lg.Tree(tree.bodies, tree.gravity, motors=servos, contact=tree.contact)
+    tree = from_urdf(args.urdf, floating_base=True, motors=lambda k: lg.AffineActuator.position(k, args.kp, args.kv),
+                     contact=lg.PenaltyContact(args.ke, args.ke / 100, args.ke / 20, 0.9),
+                     contact_points={foot: [(0.0, 0.0, 0.0, args.foot_radius)] for foot in args.feet})
     q0 = np.array(tree.neutral(), float)
     q0[7:] = np.tile(args.pose, (tree.nq - 7) // len(args.pose))  # leg by leg, hip to foot
     q0[2] += 0.05 + min(p[3] for b in tree.bodies for p in b.contacts) - np.min(
@@ -67,11 +68,14 @@ def main(args):
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--urdf", type=pathlib.Path, default=pathlib.Path(__file__).parent / "assets/quadruped.urdf")
-    parser.add_argument("--feet", nargs="+", default=["FL_foot", "FR_foot", "HL_foot", "HR_foot"])
-    parser.add_argument("--pose", type=float, nargs="+", default=[0.0, 0.8, -1.6], help="a leg's angles [rad]")
-    parser.add_argument("--kp", type=float, default=80.0, help="the position actuators' stiffness [N m/rad]")
-    parser.add_argument("--kv", type=float, default=2.0, help="their damping [N m s/rad]")
+    parser.add_argument("--urdf", type=pathlib.Path, default=pathlib.Path(__file__).parent / "assets/solo12.urdf")
+    parser.add_argument("--feet", nargs="+", default=["FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT"], help="foot links")
+    parser.add_argument("--foot-radius", type=float, default=0.016, help="each foot's sphere [m], at its origin")
+    parser.add_argument("--pose", type=float, nargs="+", default=[0, 0.8, -1.6] * 2 + [0, -0.8, 1.6] * 2,
+                        help="the joints' standing angles [rad]: all of them, or one leg's, repeated")
+    parser.add_argument("--kp", type=float, default=5.0, help="the position actuators' stiffness [N m/rad]")
+    parser.add_argument("--kv", type=float, default=0.1, help="their damping [N m s/rad]")
+    parser.add_argument("--ke", type=float, default=5e3, help="the ground's stiffness [N/m] (damping ke/100 N s/m)")
     parser.add_argument("--seconds", type=float, default=2.0)
     parser.add_argument("--out", default="runs/quadruped_stand")
     parser.add_argument("--quick", action="store_true", help="0.5 s instead of --seconds")

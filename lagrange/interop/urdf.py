@@ -26,12 +26,14 @@ same robot):
   ``"root_joint"``, as Pinocchio names it), every body its link's.
 - ``motors=True`` (the default) drives every joint with a :class:`~lagrange.model.tree.Motor` of gear 1 (``u`` is the
   joints' torques and forces, in the order of ``qd``'s joint velocities), its control clamped to ``<limit effort>``
-  where that is positive.
+  where that is positive. ``motors`` may instead be a function of a joint's index that returns its actuator, e.g.
+  ``lambda k: lg.AffineActuator.position(k, kp=5.0, kv=0.1)`` for MuJoCo's ``<position>`` servos on every joint.
 - ``<limit lower upper>`` of a revolute or prismatic joint: ``limits="ignore"`` (the default, as Pinocchio's dynamics
   read them: no force from a limit), or a :class:`lagrange.PenaltyLimits` pressing each range.
 - ``contact=PenaltyContact(...)``: the collision spheres (their centres, with their radii), boxes (their corners) and
   cylinders (the rims of their end faces, 8 points each) press the ground; a mesh collision geometry is refused by
-  name (give the body's points by hand instead: ``Body(..., contacts=...)``).
+  name. ``contact_points={"FL_FOOT": [(0, 0, 0, 0.016)]}`` gives a link's points by hand instead, ``(x, y, z,
+  radius)`` in the link's frame (Solo12's and Go2's feet are meshes).
 """
 
 from __future__ import annotations
@@ -39,13 +41,14 @@ from __future__ import annotations
 import pathlib
 import warnings
 import xml.etree.ElementTree as ET
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
 from lagrange.model.contact import PenaltyContact
 from lagrange.model.joints import Free, Hinge, Slide
 from lagrange.model.limits import PenaltyLimits
+from lagrange.model.checks import check_points
 from lagrange.model.tree import WORLD, Body, Motor, Tree
 
 __all__ = ["from_urdf"]
@@ -185,23 +188,29 @@ def _check_inertia(name, mass, J, file):
                       "reads it (MuJoCo's compiler refuses it)", stacklevel=3)
 
 
-def from_urdf(source, *, floating_base: bool = False, motors: bool = True,
+def from_urdf(source, *, floating_base: bool = False, motors: bool | Callable[[int], Motor] = True,
               limits: str | PenaltyLimits = "ignore", contact: PenaltyContact | None = None,
-              contact_links: Sequence[str] | None = None, gravity=(0.0, 0.0, -9.81)) -> Tree:
+              contact_links: Sequence[str] | None = None,
+              contact_points: Mapping[str, Sequence[Sequence[float]]] | None = None,
+              gravity=(0.0, 0.0, -9.81)) -> Tree:
     """A URDF robot as a :class:`~lagrange.model.tree.Tree` (the module docstring says how), its meshes never opened.
 
     Args:
         source: a path to a ``.urdf`` file, or the URDF text (a string starting with ``<``).
         floating_base: put a :class:`~lagrange.model.joints.Free` joint at the root (a robot that walks); ``False``
             welds the root link to the world.
-        motors: drive every joint with a motor of gear 1 (``u`` the joint torques and forces), clamped to its
-            ``<limit effort>`` where positive; ``False``: no controls.
+        motors: ``True``: drive every joint with a motor of gear 1 (``u`` the joint torques and forces), clamped to
+            its ``<limit effort>`` where positive; ``False``: no controls; a function ``k -> actuator`` of the index of
+            each hinge or slide (the free joint of ``floating_base`` is joint 0 and gets none), e.g.
+            ``lambda k: lg.AffineActuator.position(k, kp, kv)``.
         limits: ``"ignore"`` (no force from the joints' ``<limit lower upper>``) or a :class:`lagrange.PenaltyLimits`
             that presses them.
         contact: ``None``, or a :class:`lagrange.PenaltyContact` pressing the collision spheres, boxes and cylinders
             against the ground.
         contact_links: with ``contact``, the links whose collision geometry gives contact points (a quadruped's
-            feet); ``None``: every link's.
+            feet); ``None``: every link's, or with ``contact_points`` none but those.
+        contact_points: with ``contact``, points given by hand for links whose collision geometry is a mesh: link
+            name -> ``[(x, y, z, radius), ...]`` in the link's frame; they replace that link's collision geometry.
         gravity: the world's gravity vector [m/s^2].
 
     Returns:
@@ -210,7 +219,9 @@ def from_urdf(source, *, floating_base: bool = False, motors: bool = True,
     Raises:
         ValueError: naming the file and the element, for a malformed file, a joint whose parent or child link does
             not exist, a link with two parent joints, a cycle, no root or several, a robot with no moving joint,
-            ``floating_base=True`` on a robot whose root already floats.
+            ``floating_base=True`` on a robot whose root already floats, ``contact_links`` or ``contact_points``
+            naming a link that does not exist, a point that is not finite or has a negative radius.
+        TypeError: for ``motors`` neither a bool nor a function, a point that is not a sequence of numbers.
         NotImplementedError: for a ``planar`` joint, or with ``contact``, a mesh collision geometry.
     """
     if isinstance(source, str) and source.lstrip().startswith("<"):
@@ -225,13 +236,18 @@ def from_urdf(source, *, floating_base: bool = False, motors: bool = True,
         raise ValueError(f"from_urdf: limits must be \"ignore\" or a lagrange.PenaltyLimits, got {limits!r}")
     if contact is not None and not isinstance(contact, PenaltyContact):
         raise TypeError(f"from_urdf: contact must be None or a lagrange.PenaltyContact, got {type(contact).__name__}")
+    if not (isinstance(motors, bool) or callable(motors)):
+        raise TypeError(f"from_urdf: motors must be True, False or a function of a joint's index that returns its "
+                        f"actuator, got {type(motors).__name__}")
+    hand = {link: check_points(f"contact_points[{link!r}]", pts, owner="from_urdf", coords=("x", "y", "z"))
+            for link, pts in (contact_points or {}).items()}
     try:
-        return _read(text, file, floating_base, motors, limits, contact, contact_links, gravity)
+        return _read(text, file, floating_base, motors, limits, contact, contact_links, hand, gravity)
     except _Error as e:
         raise ValueError(f"from_urdf: {file}: {e}") from None
 
 
-def _read(text, file, floating_base, motors, limits, contact, contact_links, gravity):
+def _read(text, file, floating_base, motors, limits, contact, contact_links, hand, gravity):
     try:
         robot = ET.fromstring(text)
     except ET.ParseError as e:
@@ -268,9 +284,12 @@ def _read(text, file, floating_base, motors, limits, contact, contact_links, gra
                          " (a link has one parent joint; a closed loop is not a tree)")
         parent_of[ends["child"]] = (name, el, ends["parent"])
         children[ends["parent"]].append(ends["child"])
-    missing = sorted(set(contact_links or ()) - set(links))
-    if missing:
-        raise _Error(f"contact_links names links that do not exist: {missing}")
+    for arg, named in (("contact_links", contact_links or ()), ("contact_points", hand)):
+        missing = sorted(set(named) - set(links))
+        if missing:
+            raise _Error(f"{arg} names links that do not exist: {missing}; the links: {sorted(links)}")
+    if contact_links is None and hand:
+        contact_links = ()
     roots = [name for name in links if name not in parent_of]
     if len(roots) != 1:
         raise _Error("no link is the root (every link is some joint's child: a cycle)" if not roots else
@@ -290,7 +309,9 @@ def _read(text, file, floating_base, motors, limits, contact, contact_links, gra
         J = np.where(np.abs(J) < floor, 0.0, J)  # the file's round-off (1e-20 beside 1e-5) read as zero
         if body != WORLD:
             parts[body].append((m, R @ c + p, R @ J @ R.T))
-            if contact is not None and (contact_links is None or link in contact_links):
+            if contact is not None and link in hand:
+                points[body] += [(*(R @ np.array(x[:3]) + p).tolist(), x[3]) for x in hand[link]]
+            elif contact is not None and (contact_links is None or link in contact_links):
                 points[body] += _points(links[link], R, p, where)
         for child in children[link]:
             name, el, _ = parent_of[child]
@@ -312,10 +333,12 @@ def _read(text, file, floating_base, motors, limits, contact, contact_links, gra
             bodies.append(dict(joints=(joint,), parent=body, pos=pc, quat=_quat(Rc), name=child))
             k = len(bodies) - 1
             parts[k], points[k] = [], []
-            if motors and kind != "floating":
+            if callable(motors) and kind != "floating":
+                motor_list.append(motors(k))  # body k's one joint is joint k
+            elif motors and kind != "floating":
                 lim = el.find("limit")
                 effort = 0.0 if lim is None else float(_numbers(lim, "effort", 1, (0.0,), where)[0])
-                motor_list.append((k, (-effort, effort) if effort > 0 else None))
+                motor_list.append(Motor(k, 1.0, (-effort, effort) if effort > 0 else None))
             visit(child, k, np.eye(3), np.zeros(3))
 
     root = roots[0]
@@ -343,8 +366,7 @@ def _read(text, file, floating_base, motors, limits, contact, contact_links, gra
     if contact is not None and law_contact is None:
         warnings.warn(f"{file}: contact was given but no link has a collision sphere, box or cylinder; the robot "
                       "touches nothing", stacklevel=2)
-    return Tree(out, gravity, motors=[Motor(k, 1.0, r) for k, r in motor_list],  # body k's one joint is joint k
-                limits=law_limits, contact=law_contact)
+    return Tree(out, gravity, motors=motor_list, limits=law_limits, contact=law_contact)
 
 
 def _moving(el, kind, where, limits, file, name):

@@ -4,7 +4,10 @@
 ``tests/assets/arm.urdf``: a branched arm with mesh visuals that do not exist (``package://`` and relative paths), a
 revolute, a continuous and a prismatic joint about tilted axes, rotated inertial frames, a fixed joint whose child
 carries mass (merged), a massless tool link on a fixed joint, damping, a friction that is dropped, effort limits,
-a box and a sphere for collision. The whole of ``example-robot-data`` is ``python -m benchmarks.urdf_robots``."""
+a box and a sphere for collision. Four robots of ``example-robot-data`` as they ship (``tests/assets/robots/``,
+``examples/assets/solo12.urdf``; sources and licences in ``tests/assets/robots/README.md``): Panda (fixed joints merged,
+a mimic joint), Kinova (continuous joints), Solo12 (a quadruped) and Romeo (a 31-joint humanoid with inertias that are
+not physical). The whole package is ``python -m benchmarks.urdf_robots``."""
 
 import pathlib
 import warnings
@@ -20,6 +23,7 @@ from lagrange.kinematics import contact_point_positions
 from tests.helpers import mujoco_terms, rel
 
 ARM = pathlib.Path(__file__).resolve().parents[2] / "assets" / "arm.urdf"
+SOLO12 = ARM.parents[2] / "examples" / "assets" / "solo12.urdf"
 TIGHT = 1e-12  # float64 round-off on an arm of a few bodies (the errors measured are ~1e-16)
 
 
@@ -41,6 +45,28 @@ def test_the_arm_equals_pinocchio(floating):
     assert (r["nv"], r["pinocchio_nv"]) == ((10, 10) if floating else (4, 4))
     assert r["M"] <= TIGHT and r["g"] <= TIGHT and r["Cqd"] <= TIGHT, r
     assert pin.buildModelFromUrdf(str(ARM)).nv == 4
+
+
+ROBOTS = {"panda": "mimics joint 'panda_finger_joint1'", "kinova": None, "solo12": None,
+          "romeo_small": "link 'RElbowYawLink' has an inertia that is not physical"}
+
+
+@pytest.mark.parametrize("floating", [False, True], ids=["fixed", "floating"])
+@pytest.mark.parametrize("robot", list(ROBOTS))
+def test_robots_as_they_ship_equal_pinocchio(robot, floating):
+    """M, the gravity forces and C qd equal Pinocchio's reading of the same file at random states, with a fixed base
+    and with a free joint at the root; the mimic joint and the non-physical inertias are warned about."""
+    from benchmarks.urdf_robots import compare
+
+    path = SOLO12 if robot == "solo12" else ARM.parent / "robots" / f"{robot}.urdf"
+    r = compare(path, floating, states=2)
+    nv = dict(panda=9, kinova=6, solo12=12, romeo_small=31)[robot] + 6 * floating
+    assert (r["nv"], r["pinocchio_nv"]) == (nv, nv)
+    assert r["M"] <= TIGHT and r["g"] <= TIGHT and r["Cqd"] <= TIGHT, r  # measured <= 5e-14 (romeo's C qd)
+    if ROBOTS[robot]:
+        assert any(ROBOTS[robot] in w for w in r["warnings"]), r["warnings"]
+    else:
+        assert r["warnings"] == []
 
 
 def test_q_is_mujocos_qpos_and_the_forces_are_its_own():
@@ -124,29 +150,50 @@ def test_a_root_that_already_floats_and_mesh_collisions_are_refused():
 
 
 def test_a_floating_quadruped_on_the_ground_differentiates_as_central_differences():
-    """The example's quadruped (floating base, the feet's spheres on the ground, position actuators) dropped onto the
-    ground: the gradient of a short rollout's final trunk height with respect to the actuators' targets, forward mode,
-    equals central differences."""
-    quadruped = ARM.parents[2] / "examples" / "assets" / "quadruped.urdf"
-    feet = ["FL_foot", "FR_foot", "HL_foot", "HR_foot"]
-    tree = from_urdf(quadruped, floating_base=True, motors=False, contact=lg.PenaltyContact(2e4, 2e3, 1e2, 0.9),
-                     contact_links=feet)
-    tree = lg.Tree(tree.bodies, tree.gravity, motors=[lg.AffineActuator.position(k, 80.0, 2.0) for k in range(1, 13)],
-                   contact=tree.contact)
+    """The example's Solo12 (floating base, a sphere given by hand on each foot pressing the ground, position
+    actuators from ``motors=``) on its feet: the gradient of a short rollout's final trunk height with respect to the
+    actuators' targets, forward mode, equals central differences."""
+    feet = {f"{leg}_FOOT": [(0.0, 0.0, 0.0, 0.016)] for leg in ("FL", "FR", "HL", "HR")}
+    tree = from_urdf(SOLO12, floating_base=True, motors=lambda k: lg.AffineActuator.position(k, 5.0, 0.1),
+                     contact=lg.PenaltyContact(5e3, 50.0, 250.0, 0.9), contact_points=feet)
+    assert [len(b.contacts) for b in tree.bodies] == [0] + [0, 0, 1] * 4 and tree.m == 12
     q0 = np.array(tree.neutral(), float)
-    q0[7:] = np.tile([0.0, 0.8, -1.6], 4)
-    q0[2] = 0.29  # the feet's spheres a few mm into the ground
+    q0[7:] = [0, 0.8, -1.6] * 2 + [0, -0.8, 1.6] * 2
+    q0[2] += 0.016 - 0.002 - np.min(np.asarray(contact_point_positions(tree, jnp.asarray(q0)))[:, 2])  # 2 mm in
     targets = jnp.asarray(np.tile(q0[7:], (4, 1)))
 
     @jax.jit
     def height(targets):
-        traj = lg.simulate(tree, jnp.asarray(q0), jnp.zeros(tree.nv), targets, 0.005, lg.SemiImplicitEuler(), 2)
+        traj = lg.simulate(tree, jnp.asarray(q0), jnp.zeros(tree.nv), targets, 0.005, lg.SemiImplicitEuler(), 5)
         return traj.q[-1, 2]
 
-    touching = np.asarray(contact_point_positions(tree, jnp.asarray(q0)))[:, 2] < 0.02
-    assert touching.all()
     e = np.zeros(targets.shape)
     e[0, 1], e[1, 5], e[2, 10] = 1.0, -0.5, 0.7  # thighs and a calf
     _, slope = jax.jvp(height, (targets,), (jnp.asarray(e),))
     fd = (height(targets + 1e-6 * e) - height(targets - 1e-6 * e)) / 2e-6
+    assert abs(float(fd)) > 1e-4  # the targets move the trunk
     assert abs(float(slope) - float(fd)) <= 1e-6 * max(1e-3, abs(float(fd))), (float(slope), float(fd))
+
+
+def test_points_given_by_hand_and_an_actuator_per_joint():
+    """``contact_points`` places a link's points in its frame (through the fixed joint that merged it into its body)
+    in place of any collision geometry; ``motors=`` a function puts its actuator on every hinge and slide; bad ones
+    are refused by name."""
+    contact = lg.PenaltyContact(2e4, 1e3, 1e3, 0.9)
+    tree = _read(contact=contact, contact_points={"flange": [(0.0, 0.0, 0.1, 0.01)]},
+                 motors=lambda k: lg.AffineActuator.position(k, 50.0, 1.0))
+    assert [len(b.contacts) for b in tree.bodies] == [1, 0, 0, 0]  # the hand-given point only: no box, no sphere
+    # the flange hangs from the upper arm at xyz (0, 0.02, 0.4), rpy (0.4, 0, 0): the point turned about x, moved
+    assert np.allclose(tree.bodies[0].contacts[0], (0.0, 0.02 - 0.1 * np.sin(0.4), 0.4 + 0.1 * np.cos(0.4), 0.01),
+                       rtol=0, atol=1e-15)
+    both = _read(contact=contact, contact_links=["slider"], contact_points={"flange": [(0.0, 0.0, 0.1, 0.01)]})
+    assert [len(b.contacts) for b in both.bodies] == [1, 0, 1, 0]  # and the slider's sphere
+    assert all(isinstance(mo, lg.AffineActuator) for mo in tree.motors)
+    assert [mo.joint for mo in tree.motors] == [0, 1, 2, 3] and float(tree.motors[2].gain) == 50.0
+    with pytest.raises(ValueError, match=r"from_urdf: the URDF text: contact_points names links that do not exist: "
+                                         r"\['heel'\]"):
+        _read(ARM.read_text(), contact=contact, contact_points={"heel": [(0, 0, 0, 0.01)]})
+    with pytest.raises(ValueError, match=r"from_urdf.contact_points\['tool'\]\[0\] must be finite with radius >= 0"):
+        _read(contact=contact, contact_points={"tool": [(0, 0, 0, -0.01)]})
+    with pytest.raises(TypeError, match=r"from_urdf: motors must be True, False or a function"):
+        _read(motors="position")
