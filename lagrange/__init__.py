@@ -7,6 +7,7 @@ import sys
 from lagrange.chain import Chain, Link
 from lagrange.model.joints import Ball, Free, Hinge, Slide
 from lagrange.model.tree import AffineActuator, Body, Motor, Tree
+from lagrange.model.muscles import Muscle
 from lagrange.model.contact import PenaltyContact
 from lagrange.model.limits import PenaltyLimits
 from lagrange.forces import actuation_matrix, clamp_controls
@@ -21,7 +22,7 @@ from lagrange.dynamics import (
 from lagrange.integrate import Trajectory, simulate, step
 from lagrange.integrate.batch import simulate_batch
 from lagrange.compile import compiler_options
-from lagrange.kinematics import com_positions, positions
+from lagrange.kinematics import com_positions, muscle_lengths, positions
 from lagrange.precision import astype
 from lagrange.integrate.solvers import RK4, Dopri5, Dopri8, Euler, MomentumEuler, SemiImplicitEuler, Tsit5
 from lagrange.integrate import solvers
@@ -34,6 +35,7 @@ __all__ = [
     "Hinge",
     "Motor",
     "AffineActuator",
+    "Muscle",
     "Slide",
     "Tree",
     "RK4",
@@ -63,6 +65,7 @@ __all__ = [
     "gravity_forces",
     "inverse_dynamics",
     "mass_matrix",
+    "muscle_lengths",
     "positions",
 ]
 

@@ -78,6 +78,13 @@ class AbstractBackend(eqx.Module):
         """The actuators' generalized forces, ``B u`` with ``u`` clamped into the motors' ranges (and the state's terms
         of the actuators that have them, at ``q`` and ``qd``), ``(*batch, nv)``; ``None`` without control."""
 
+    def actuated_forces(self, q, qd, u=None):
+        """``actuation(u, q, qd) - bias_forces(q, qd)``, the right-hand side of ``M qdd = tau - bias``,
+        ``(*batch, nv)`` (a backend may compute both from one kinematics)."""
+        tau = None if u is None else self.actuation(u, q, qd)
+        bias = self.bias_forces(q, qd)
+        return -bias if tau is None else tau - bias
+
     @abc.abstractmethod
     def spring_forces(self, q):
         """The joint springs' ``K (q - q_ref)``, ``(*batch, nv)``; ``None`` without springs."""

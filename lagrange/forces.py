@@ -37,8 +37,20 @@ def actuation_matrix(chain: Tree) -> Float[Array, "n m"]:
     Returns:
         ``B``, shape ``(nv, m)``. A chain with control ranges applies ``B`` to the clamped control
         (:func:`clamp_controls`).
+
+    Raises:
+        ValueError: for a tree with muscles, whose generalized forces depend on ``q`` (no constant ``B``).
     """
-    B = jnp.zeros((chain.nv, chain.m), dtype=jnp.result_type(float) if chain.gear is None else chain.gear.dtype)
+    if getattr(chain, "muscles", ()):
+        raise ValueError("actuation_matrix: the tree has muscles, whose generalized forces -F dL/dq depend on q: no "
+                         "constant B exists; take the forces from lagrange.inverse_dynamics or forward_dynamics")
+    return motor_matrix(chain)
+
+
+def motor_matrix(chain: Tree) -> Float[Array, "n motors"]:
+    """The motors' columns of ``B``: ``(nv, motors)``, ``B[actuated[k], k] = gear[k]`` (a tree's muscles aside)."""
+    count = len(chain.actuated)
+    B = jnp.zeros((chain.nv, count), dtype=jnp.result_type(float) if chain.gear is None else chain.gear.dtype)
     for k, j in enumerate(chain.actuated):
         B = B.at[j, k].set(chain.gear[k])
     return B

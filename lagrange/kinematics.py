@@ -15,7 +15,7 @@ from lagrange import rbda
 from lagrange.model.checks import check_shapes
 from lagrange.model.tree import Tree, check_tree
 
-__all__ = ["com_positions", "contact_point_positions", "positions", "tip_positions"]
+__all__ = ["com_positions", "contact_point_positions", "muscle_lengths", "positions", "tip_positions"]
 
 
 def _q(tree: Tree, q):
@@ -45,3 +45,9 @@ def contact_point_positions(tree: Tree, q: Float[ArrayLike, "*batch nq"]) -> Flo
     """The bodies' contact points (their centres, not lowered by the radius) in the world [m], bodies in order and
     each body's points in order, shape ``(*batch, k, 3)``; ``k = 0`` for a tree without contact points."""
     return rbda.contact_point_positions(tree, _q(tree, q))
+
+
+def muscle_lengths(tree: Tree, q: Float[ArrayLike, "*batch nq"]) -> Float[Array, "*batch muscles"]:
+    """Every muscle's path length ``L(q)`` [m] (:class:`lagrange.Muscle`: the polyline through its waypoints), shape
+    ``(*batch, muscles)``; its generalized force is ``-F dL/dq``."""
+    return rbda.muscle_lengths(tree, _q(tree, q))

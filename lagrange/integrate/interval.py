@@ -132,11 +132,15 @@ def _fixed_substep(b: AbstractBackend, solver, h, q, qd, u):
 
 
 def _held_mass_matrix_interval(b: AbstractBackend, solver: SemiImplicitEuler, h, substeps: int):
-    """Semi-implicit Euler with ``M`` (``+ h diag(damping)`` with implicit damping) formed and Cholesky-factored once
-    at the interval's start and used by every substep; the forces ``B u - bias`` of every substep's own state. (An
-    LDL^T unrolled over the entries ran as fast and compiled 4x longer for the cheetah's 9 dof.)"""
+    """Semi-implicit Euler with ``M`` (``+ h diag(damping)`` with implicit damping) formed and Cholesky-factored at the
+    interval's start (and every ``solver.mass_matrix_every`` substeps) and used by the substeps until the next; the
+    forces ``tau - bias`` of every substep's own state. (An LDL^T unrolled over the entries ran as fast and compiled 4x
+    longer for the cheetah's 9 dof.)"""
+    every = substeps if solver.mass_matrix_every is None else solver.mass_matrix_every
+    if substeps % every:
+        raise ValueError(f"SemiImplicitEuler.mass_matrix_every={every} must divide substeps={substeps}")
 
-    def interval(q, qd, u):
+    def block(q, qd, u, length):
         M = b.mass_matrix(q)
         if solver.implicit_damping and b.damping is not None:
             M = M + h * jnp.diag(b.damping)
@@ -146,12 +150,21 @@ def _held_mass_matrix_interval(b: AbstractBackend, solver: SemiImplicitEuler, h,
 
         def body(carry, _):
             q, qd = carry
-            act = b.actuation(u, q, qd) if u is not None and b.state_dependent_actuation else Bu
-            qdd = solve(act - b.bias_forces(q, qd))
+            if u is not None and b.state_dependent_actuation:
+                qdd = solve(b.actuated_forces(q, qd, u))
+            else:
+                qdd = solve(Bu - b.bias_forces(q, qd))
             qd1 = qd + h * qdd
             return (b.move(q, qd1, h), qd1), None
 
-        return jax.lax.scan(_remat(solver, body), (q, qd), None, length=substeps)[0]
+        return jax.lax.scan(_remat(solver, body), (q, qd), None, length=length)[0]
+
+    if every == substeps:
+        return lambda q, qd, u: block(q, qd, u, substeps)
+
+    def interval(q, qd, u):
+        return jax.lax.scan(lambda carry, _: (block(*carry, u, every), None), (q, qd), None,
+                            length=substeps // every)[0]
 
     return interval
 

@@ -60,6 +60,9 @@ class SemiImplicitEuler(eqx.Module):
             every substep of the interval (DFlex's ``MM_caching_frequency`` equal to its substeps, as the SHAC
             configs run it); the forces are evaluated every substep. ``False`` (the default): ``M`` of every
             substep's own state; static.
+        mass_matrix_every (int | None): with ``hold_mass_matrix``, form ``M`` anew every this many substeps (DFlex's
+            ``MM_caching_frequency``: the SNU humanoid's 8 of 48), which must divide ``substeps``; ``None`` (the
+            default): once per interval; static.
         checkpoint_substeps (bool): recompute each substep's intermediates in the backward pass (``jax.checkpoint``)
             instead of storing them: the same values, gradients equal to round-off, memory of one state per
             substep. Measured on a CPU (SHAC's 32-step window of DFlex's humanoid, 48 substeps, 64 envs, float32):
@@ -69,11 +72,18 @@ class SemiImplicitEuler(eqx.Module):
     implicit_damping: bool = eqx.field(static=True, default=True)
     hold_mass_matrix: bool = eqx.field(static=True, default=False)
     checkpoint_substeps: bool = eqx.field(static=True, default=False)
+    mass_matrix_every: int | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         for name in ("implicit_damping", "hold_mass_matrix", "checkpoint_substeps"):
             if not isinstance(getattr(self, name), bool):
                 raise TypeError(f"SemiImplicitEuler.{name} must be True or False, got {getattr(self, name)!r}")
+        every = self.mass_matrix_every
+        if every is not None and (isinstance(every, bool) or not isinstance(every, int) or every < 1):
+            raise ValueError(f"SemiImplicitEuler.mass_matrix_every must be None or an integer >= 1, got {every!r}")
+        if every is not None and not self.hold_mass_matrix:
+            raise ValueError("SemiImplicitEuler.mass_matrix_every needs hold_mass_matrix=True (without it M is formed "
+                             "at every substep)")
 
     def order(self, terms=None):
         return 1

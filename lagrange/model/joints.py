@@ -38,7 +38,7 @@ from lagrange.math.sincos import sincos
 from lagrange.model.checks import check_array, check_pair
 from lagrange.math import spatial as al
 
-__all__ = ["AbstractJoint", "Ball", "Free", "Hinge", "Slide", "JOINTS"]
+__all__ = ["AbstractJoint", "Ball", "DFlexBall", "Free", "Hinge", "Slide", "JOINTS"]
 
 
 def _axis(name: str, axis) -> tuple[float, float, float]:
@@ -115,6 +115,12 @@ class AbstractJoint(eqx.Module):
         """The displacement ``(..., nv)`` the spring pulls back from the rest coordinates ``ref`` (``(nq,)``):
         ``q - ref``, or the rotation vector from ``ref``'s quaternion to ``q``'s."""
         raise NotImplementedError
+
+    def spring_energy(self, q, ref):
+        """Twice the spring's potential per unit of stiffness, ``(...)``: ``|spring(q, ref)|^2`` (the potential is
+        ``1/2 stiffness`` times it)."""
+        d = self.spring(q, ref)
+        return jnp.sum(d * d, axis=-1)
 
     def neutral(self):
         """The coordinates of the body's frame as written (``ref``; the identity quaternion), a NumPy ``(nq,)``."""
@@ -266,6 +272,24 @@ class Ball(AbstractJoint):
 
     def neutral(self):
         return np.array([1.0, 0.0, 0.0, 0.0])
+
+
+class DFlexBall(Ball):
+    """A :class:`Ball` with DFlex's spring instead of MuJoCo's (``dflex/sim.py``, NVlabs/DiffRL 6b8d695): the torque
+    ``-stiffness r`` with ``r = sin(theta/2) axis`` the vector part of the rotation from ``springref`` (its quaternion
+    not turned to the shorter way round), about half MuJoCo's rotation-vector spring ``-stiffness theta axis`` near
+    rest. It is conservative: its potential is ``2 stiffness (1 - w)``, ``w`` that rotation's scalar part (the torque
+    is the same in the body's frame as in DFlex's parent-side one, since the axis is the rotation's own). What reads
+    DFlex's models with its fidelity options uses it (:mod:`lagrange.tasks.snu`)."""
+
+    def spring(self, q, ref):
+        ref = al.normalize_quat(jnp.asarray(ref, q.dtype))
+        return al.quat_multiply(ref * jnp.asarray([1.0, -1.0, -1.0, -1.0], q.dtype), al.normalize_quat(q))[..., 1:]
+
+    def spring_energy(self, q, ref):
+        ref = al.normalize_quat(jnp.asarray(ref, q.dtype))
+        w = al.quat_multiply(ref * jnp.asarray([1.0, -1.0, -1.0, -1.0], q.dtype), al.normalize_quat(q))[..., 0]
+        return 4.0 * (1.0 - w)
 
 
 class Free(AbstractJoint):

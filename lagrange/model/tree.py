@@ -28,6 +28,7 @@ from lagrange.model.checks import check_array, check_points, traced
 from lagrange.model.contact import PenaltyContact
 from lagrange.model.joints import AbstractJoint, Free, Hinge, Slide
 from lagrange.model.limits import PenaltyLimits
+from lagrange.model.muscles import Muscle
 from lagrange.model.plane import normal
 
 __all__ = ["AffineActuator", "Body", "Motor", "Tree", "WORLD"]
@@ -213,13 +214,14 @@ class Tree(eqx.Module):
         bodies: :class:`Body` s, parents before children.
         gravity: the gravitational acceleration vector [m/s^2] in the world frame (MuJoCo's ``opt.gravity``).
         motors: the :class:`Motor` s, in the order of the controls ``u``.
+        muscles: the :class:`lagrange.Muscle` s, their activations the controls after the motors', in order.
         contact: the ground contact law (:class:`lagrange.PenaltyContact`; its ``ground`` the height of the level
             plane ``z = ground``) pressing the bodies' ``contacts``; given exactly when some body has contact points.
         limits: the joint limit law (:class:`lagrange.PenaltyLimits`) for the hinges and slides with a ``range``;
             given exactly when some joint has one.
 
     Attributes:
-        nq, nv, m: the numbers of coordinates, velocities and controls.
+        nq, nv, m: the numbers of coordinates, velocities and controls (the motors' and the muscles').
         parents: each body's parent (:data:`WORLD` for a body of the world); static.
         joint_body: the body of each joint; static.
         qadr, vadr: where each joint's coordinates start in ``q`` and its velocities in ``qd``; static.
@@ -227,12 +229,14 @@ class Tree(eqx.Module):
     Raises:
         TypeError, ValueError: naming the field, for a body that is not one, a parent that is not listed before
             its child, a motor on a joint that does not exist or is not a hinge or slide, two motors on one joint,
-            a free joint on a body that does not hang from the world.
+            a free joint on a body that does not hang from the world, a muscle's waypoint on a body that does not
+            exist.
     """
 
     bodies: tuple[Body, ...]
     gravity: Float[Array, "3"]
     motors: tuple[Motor, ...]
+    muscles: tuple[Muscle, ...]
     contact: PenaltyContact | None
     limits: PenaltyLimits | None
     parents: tuple[int, ...] = eqx.field(static=True)
@@ -241,8 +245,8 @@ class Tree(eqx.Module):
     vadr: tuple[int, ...] = eqx.field(static=True)
 
     def __init__(self, bodies: Sequence[Body], gravity: Float[ArrayLike, "3"] = (0.0, 0.0, -9.81), *,
-                 motors: Sequence[Motor] = (), contact: PenaltyContact | None = None,
-                 limits: PenaltyLimits | None = None):
+                 motors: Sequence[Motor] = (), muscles: Sequence[Muscle] = (),
+                 contact: PenaltyContact | None = None, limits: PenaltyLimits | None = None):
         bodies = (bodies,) if isinstance(bodies, Body) else tuple(bodies)
         if not bodies:
             raise ValueError("Tree.bodies must hold at least one Body")
@@ -285,6 +289,15 @@ class Tree(eqx.Module):
                 raise ValueError(f"Tree.motors[{k}]: joint {mo.joint} already has a motor")
             seen.add(mo.joint)
         self.motors = motors
+        muscles = tuple(muscles)
+        for k, mu in enumerate(muscles):
+            if not isinstance(mu, Muscle):
+                raise TypeError(f"Tree.muscles[{k}] must be a lagrange.Muscle, got {type(mu).__name__}")
+            bad = [b for b in mu.bodies if b >= len(bodies)]
+            if bad:
+                raise ValueError(f"Tree.muscles[{k}]{f' ({mu.name!r})' if mu.name else ''} has a waypoint on body "
+                                 f"{bad[0]}; the tree has bodies 0..{len(bodies) - 1}")
+        self.muscles = muscles
         touching = [i for i, b in enumerate(bodies) if b.contacts]
         limited = [k for k, j in enumerate(self.joints) if j.range is not None]
         if contact is not None and not isinstance(contact, PenaltyContact):
@@ -301,6 +314,8 @@ class Tree(eqx.Module):
                              "Tree(..., limits=lagrange.PenaltyLimits(ke, kd)), or drop the ranges"
                              if limits is None else "Tree.limits is given but no joint has a range: give hinges or "
                              "slides Hinge(..., range=(lower, upper)), or drop limits")
+        if limits is not None:
+            limits.check_count(len(limited))
         self.contact, self.limits = contact, limits
 
     @property
@@ -340,8 +355,8 @@ class Tree(eqx.Module):
 
     @property
     def m(self) -> int:
-        """Number of controls."""
-        return len(self.motors)
+        """Number of controls: the motors', then the muscles' activations."""
+        return len(self.motors) + len(self.muscles)
 
     @property
     def actuated(self) -> tuple[int, ...]:
@@ -379,6 +394,14 @@ class Tree(eqx.Module):
             KeyError: naming the tree's joint names, where none is ``name``.
         """
         return _index("joint", [j.name for j in self.joints], name)
+
+    def muscle_index(self, name: str) -> int:
+        """The index in :attr:`muscles` of the muscle named ``name`` (its activation is control ``len(motors) + k``).
+
+        Raises:
+            KeyError: naming the tree's muscle names, where none is ``name``.
+        """
+        return _index("muscle", [mu.name for mu in self.muscles], name)
 
     def body_index(self, name: str) -> int:
         """The index in :attr:`bodies` of the body named ``name``.

@@ -154,14 +154,15 @@ def lower(tree) -> PlanarChain | None:
     where the tree is planar but the plane cannot carry it: gravity with a part in the plane that is not along one
     axis of it cannot happen (the plane's ``z`` follows gravity), but a level ground that is not a line ``z = const``
     of the plane can; a tree without a plane (:attr:`lagrange.Tree.planar` false) has none; and the planar backends
-    add motors only, not actuators whose force depends on the state (:class:`lagrange.model.tree.AffineActuator`).
+    add motors only, not actuators whose force depends on the state (:class:`lagrange.model.tree.AffineActuator`,
+    :class:`lagrange.Muscle`).
 
     Args:
         tree: a :class:`lagrange.Tree`, its concrete parameters as NumPy arrays or JAX arrays (both fold), traced ones
             as they are.
     """
     Y = normal(tree)
-    if Y is None or any(mo.state_dependent for mo in tree.motors):  # the planar chain carries motors only
+    if Y is None or tree.muscles or any(mo.state_dependent for mo in tree.motors):  # the chain carries motors only
         return None
     Y = np.asarray(Y)
     X, Z = _basis(tree, Y)

@@ -22,12 +22,14 @@ from lagrange.rbda.crba import crba
 from lagrange.rbda.contact import contact_energy, contact_wrenches
 from lagrange.rbda.forces import actuation, limit_energy, limit_forces, passive, per_dof, spring_potential
 from lagrange.rbda.kinematics import Kinematics
+from lagrange.rbda.muscles import muscle_lengths, muscle_torques, muscle_wrenches
 from lagrange.rbda.rnea import rnea
 from lagrange.model.tree import WORLD, Tree
 
-__all__ = ["bias_forces", "com_positions", "contact_point_positions", "dexpinv", "energy", "forward_dynamics",
-           "gravity_forces", "integrate_positions", "inverse_dynamics", "mass_matrix", "normalize_quaternions",
-           "positions", "position_derivative", "tip_positions"]
+__all__ = ["actuated_forces", "bias_forces", "com_positions", "contact_point_positions", "dexpinv", "energy",
+           "forward_dynamics", "gravity_forces", "integrate_positions", "inverse_dynamics", "mass_matrix",
+           "muscle_lengths", "muscle_torques", "normalize_quaternions", "positions", "position_derivative",
+           "tip_positions"]
 
 
 def _broadcast(q, *xs):
@@ -46,9 +48,13 @@ def mass_matrix(tree: Tree, q):
     return crba(Kinematics(tree, _broadcast(q)[0]))
 
 
-def _external(k: Kinematics):
-    """The contact forces on the links, or ``None`` without contact."""
-    return None if k.tree.contact is None else contact_wrenches(k)
+def _external(k: Kinematics, u=None):
+    """The contact forces and, with the controls ``u``, the muscles' on the links; ``None`` without either."""
+    tree = k.tree
+    contact = None if tree.contact is None else contact_wrenches(k)
+    if u is None or not tree.muscles:
+        return contact
+    return _total(contact, muscle_wrenches(k, u[..., len(tree.motors):]))
 
 
 def _total(*terms):
@@ -80,15 +86,29 @@ def inverse_dynamics(tree: Tree, q, qd, qdd):
     return _minus(tau, passive(tree, q, qd))
 
 
+def _rhs(k: Kinematics, q, qd, u, external=None):
+    """``tau - bias``: the actuators' (motors' and muscles') generalized forces, the dampers', springs', limits' and
+    the contact's, less the rigid bodies' velocity products and gravity, at the kinematics ``k``."""
+    tree = k.tree
+    return _total(-rnea(k, external=_total(external, _external(k, u))), actuation(tree, u, q, qd),
+                  passive(tree, q, qd), limit_forces(tree, q, qd))
+
+
+def actuated_forces(tree: Tree, q, qd, u=None):
+    """``tau(u) - bias``, the right-hand side of ``M qdd = tau - bias``, with one kinematics (what a step with a held
+    mass matrix solves for)."""
+    q, qd, u = _broadcast(q, qd, None if u is None or tree.m == 0 else u)
+    return _rhs(Kinematics(tree, q, qd), q, qd, u)
+
+
 def forward_dynamics(tree: Tree, q, qd, u=None, implicit_damping_dt=None, *, pivots: bool = False, external=None):
-    """``qdd`` (and with ``pivots``, where the factorisation fails) under the motors' ``u``, the dampers and springs,
-    the limits, the ground contact and ``external`` spatial forces on the links (``(..., n, 6)``) if given:
-    ``M qdd = tau - bias`` solved by a Cholesky factorisation of ``M`` (``M + h diag(damping)`` with
+    """``qdd`` (and with ``pivots``, where the factorisation fails) under the motors' and the muscles' ``u``, the
+    dampers and springs, the limits, the ground contact and ``external`` spatial forces on the links (``(..., n, 6)``)
+    if given: ``M qdd = tau - bias`` solved by a Cholesky factorisation of ``M`` (``M + h diag(damping)`` with
     ``implicit_damping_dt = h``)."""
     q, qd, u = _broadcast(q, qd, None if u is None or tree.m == 0 else u)
     k = Kinematics(tree, q, qd)
-    rhs = _total(-rnea(k, external=_total(external, _external(k))), actuation(tree, u, q, qd), passive(tree, q, qd),
-                 limit_forces(tree, q, qd))
+    rhs = _rhs(k, q, qd, u, external)
     M = crba(k)
     damping = per_dof(tree, "damping")
     if implicit_damping_dt is not None and damping is not None:

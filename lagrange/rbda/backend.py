@@ -62,10 +62,17 @@ class General(AbstractBackend):
 
     @property
     def state_dependent_actuation(self) -> bool:
-        return any(mo.state_dependent for mo in self.tree.motors)
+        return bool(self.tree.muscles) or any(mo.state_dependent for mo in self.tree.motors)
 
     def actuation(self, u, q=None, qd=None):
-        return actuation(self.tree, u, q, qd)
+        motors = actuation(self.tree, *_arrays(u, q, qd))
+        if u is None or not self.tree.muscles:
+            return motors
+        muscles = rbda.muscle_torques(self.tree, *_arrays(q, qd, u))
+        return muscles if motors is None else motors + muscles
+
+    def actuated_forces(self, q, qd, u=None):
+        return rbda.actuated_forces(self.tree, *_arrays(q, qd, u))
 
     def spring_forces(self, q):
         springs = passive(self.tree, q, None)

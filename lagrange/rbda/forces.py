@@ -7,7 +7,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from lagrange.forces import actuation_matrix, clamp_controls
+from lagrange.forces import clamp_controls, motor_matrix
 from lagrange.model.joints import Free
 from lagrange.model.tree import Tree
 
@@ -39,7 +39,8 @@ def passive(tree: Tree, q, qd):
     if qd is not None and damping is not None:
         out = -jnp.asarray(damping, qd.dtype) * qd
     if q is not None:
-        for link, j, d in _springs(tree, q):
+        for link, j, qj, ref in _springs(tree, q):
+            d = j.spring(qj, ref)
             force = jnp.zeros(q.shape[:-1] + (tree.nv,), q.dtype)
             force = force.at[..., tree.vadr[link]: tree.vadr[link] + j.nv].set(-jnp.asarray(j.stiffness, d.dtype) * d)
             out = force if out is None else out + force
@@ -47,7 +48,8 @@ def passive(tree: Tree, q, qd):
 
 
 def _springs(tree: Tree, q):
-    """``(link, joint, displacement (..., nv_j))`` of every joint with a spring (not exactly zero stiffness)."""
+    """``(link, joint, its coordinates (..., nq_j), its spring's rest coordinates)`` of every joint with a spring (not
+    exactly zero stiffness)."""
     for link, j in enumerate(tree.joints):
         if _zero(j.stiffness):
             continue
@@ -55,31 +57,36 @@ def _springs(tree: Tree, q):
         if isinstance(j, Free) and ref is None:
             b = tree.bodies[tree.joint_body[link]]
             ref = jnp.concatenate([jnp.asarray(b.pos), jnp.asarray(b.quat)])
-        yield link, j, j.spring(q[..., tree.qadr[link]: tree.qadr[link] + j.nq], ref)
+        yield link, j, q[..., tree.qadr[link]: tree.qadr[link] + j.nq], ref
 
 
 def spring_potential(tree: Tree, q):
-    """The springs' ``1/2 stiffness |displacement|^2``, ``(...)``; ``None`` without springs."""
-    terms = [0.5 * j.stiffness * jnp.sum(d * d, axis=-1) for _, j, d in _springs(tree, q)]
+    """The springs' potential ``1/2 stiffness |displacement|^2`` (a joint's own, :meth:`spring_energy`), ``(...)``;
+    ``None`` without springs."""
+    terms = [0.5 * j.stiffness * j.spring_energy(qj, ref) for _, j, qj, ref in _springs(tree, q)]
     return sum(terms[1:], terms[0]) if terms else None
 
 
 def actuation(tree: Tree, u, q=None, qd=None):
-    """The actuators' generalized forces (MuJoCo's ``qfrc_actuator``), ``(..., nv)``: ``B u`` with ``u`` clamped into
+    """The motors' generalized forces (MuJoCo's ``qfrc_actuator``), ``(..., nv)``: ``B u`` with ``u`` clamped into
     the motors' ranges first, and for an actuator whose force depends on its joint's state
-    (:class:`lagrange.model.tree.AffineActuator`) ``gear * force(u, gear q_j, gear qd_j)``; ``None`` without control."""
-    if u is None or tree.m == 0:
+    (:class:`lagrange.model.tree.AffineActuator`) ``gear * force(u, gear q_j, gear qd_j)``; ``None`` without motors or
+    control. The muscles' activations (the controls after the motors') are not read here: their forces need the
+    kinematics (:mod:`lagrange.rbda.muscles`)."""
+    if u is None or not tree.motors:
         return None
+    if tree.muscles:
+        u = u[..., :len(tree.motors)]
     u = clamp_controls(tree, u)
     if not any(mo.state_dependent for mo in tree.motors):
-        return jnp.einsum("ij,...j->...i", actuation_matrix(tree).astype(u.dtype), u)
+        return jnp.einsum("ij,...j->...i", motor_matrix(tree).astype(u.dtype), u)
     forces = []
     for k, mo in enumerate(tree.motors):
         qa, va = tree.qadr[mo.joint], tree.vadr[mo.joint]
         gear = jnp.asarray(mo.gear, u.dtype)
         forces.append(gear * mo.force(u[..., k], gear * q[..., qa], gear * qd[..., va]))
-    E = np.zeros((tree.nv, tree.m))
-    E[list(tree.actuated), np.arange(tree.m)] = 1.0
+    E = np.zeros((tree.nv, len(tree.motors)))
+    E[list(tree.actuated), np.arange(len(tree.motors))] = 1.0
     return jnp.einsum("ik,...k->...i", jnp.asarray(E, u.dtype), jnp.stack(jnp.broadcast_arrays(*forces), -1))
 
 

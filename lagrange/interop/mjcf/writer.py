@@ -37,8 +37,9 @@ import math
 import jax
 import numpy as np
 
-from lagrange.model.joints import Ball, Free, Hinge, Slide
+from lagrange.model.joints import Ball, DFlexBall, Free, Hinge, Slide
 from lagrange.model.tree import WORLD, AffineActuator, Tree, check_tree
+from lagrange.model.muscles import Muscle
 
 INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
 """The MuJoCo integrators :func:`to_mjcf` accepts (Brax loads only ``"Euler"``)."""
@@ -85,14 +86,19 @@ def to_mjcf(
             rejects; must be in ``(1e-15, 1e-6]``.
 
     Returns:
-        The MJCF XML as a string. Joint ``k`` is named ``q{k}``, actuator ``k`` ``u{k}`` (the motors' order), so
-        MuJoCo's ``qpos``, ``qvel`` and ``ctrl`` line up with ``q``, ``qd`` and ``u``.
+        The MJCF XML as a string. Joint ``k`` is named ``q{k}``, actuator ``k`` ``u{k}`` (the motors', then the
+        muscles' order), so MuJoCo's ``qpos``, ``qvel`` and ``ctrl`` line up with ``q``, ``qd`` and ``u``. A muscle
+        (:class:`lagrange.Muscle`, DFlex's law) is a spatial tendon ``m{k}`` through sites ``m{k}_{i}`` at its
+        waypoints, driven by a ``<general>`` actuator on it of gain ``-strength`` and ``ctrlrange="0 1"``
+        (MuJoCo's tendon force pulls along ``+dL``, so the negative gain contracts): ``ten_length`` is ``L`` and
+        ``qfrc_actuator`` the muscle's ``-F dL/dq``.
 
     Raises:
         TypeError: for a model that is not a tree, traced parameters, a timestep that is not a number.
         ValueError: for a bad timestep, integrator, name, radius or tiny.
-        NotImplementedError: for a tree with a contact or limit law, or a ball's or free joint's spring whose rest
-            pose is not the body as written.
+        NotImplementedError: for a tree with a contact or limit law, a ball's or free joint's spring whose rest
+            pose is not the body as written, or a muscle whose law is not DFlex's (a subclass of
+            :class:`lagrange.Muscle` that overrides ``tension``).
     """
     check_tree(tree, "tree")
     if isinstance(timestep, bool) or not isinstance(timestep, (int, float, np.floating, np.integer)):
@@ -113,6 +119,14 @@ def to_mjcf(
                                       "state (MuJoCo's contact and limits are constraints, not penalties); write "
                                       f"the tree without it: {type(tree).__name__}(..., {what}=None) and no "
                                       f"{'contact points' if what == 'contact' else 'joint ranges'}")
+    for k, mu in enumerate(tree.muscles):
+        if type(mu).tension is not Muscle.tension:
+            raise NotImplementedError(f"to_mjcf: muscle {k} is a {type(mu).__name__}, whose tension law MJCF cannot "
+                                      "state; only lagrange.Muscle's (activation x strength) is written")
+    sites = {}  # body -> [(name, point)]
+    for k, mu in enumerate(tree.muscles):
+        for i, (b, x) in enumerate(zip(mu.bodies, _concrete(mu.points, f"muscle {k}.points"))):
+            sites.setdefault(b, []).append((f"m{k}_{i}", x))
     gravity = _concrete(tree.gravity, f"{type(tree).__name__}.gravity")
     lines = [f'<mujoco model="{name}">',
              '  <compiler angle="radian" inertiafromgeom="false" autolimits="false"/>',
@@ -139,6 +153,8 @@ def to_mjcf(
             shape = (f'type="capsule" fromto="{_vec(np.concatenate([np.zeros(3), tip]))}" size="{_num(radius)}"'
                      if np.any(tip != 0) else f'type="sphere" size="{_num(2 * radius)}"')
             lines.append(f'{inner}<geom name="geom{b}" {shape} contype="0" conaffinity="0"/>')
+        for site, x in sites.get(b, []):
+            lines.append(f'{inner}<site name="{site}" pos="{_vec(x)}"/>')
         for c in children[b]:
             body(c, inner)
         lines.append(f"{indent}</body>")
@@ -146,7 +162,14 @@ def to_mjcf(
     for root in children[WORLD]:
         body(root, "    ")
     lines.append("  </worldbody>")
-    if tree.motors:
+    if tree.muscles:
+        lines.append("  <tendon>")
+        for k, mu in enumerate(tree.muscles):
+            lines.append(f'    <spatial name="m{k}">')
+            lines.extend(f'      <site site="m{k}_{i}"/>' for i in range(len(mu.bodies)))
+            lines.append("    </spatial>")
+        lines.append("  </tendon>")
+    if tree.motors or tree.muscles:
         lines.append("  <actuator>")
         for k, mo in enumerate(tree.motors):
             r = mo.control_range
@@ -160,6 +183,10 @@ def to_mjcf(
             lines.append(f'    <general name="u{k}" joint="q{mo.joint}" gear="{gear}" {limit} {force} gaintype="fixed" '
                          f'gainprm="{_num(_concrete(mo.gain, "AffineActuator.gain"))}" biastype="affine" '
                          f'biasprm="{_vec(_concrete(mo.bias, "AffineActuator.bias"))}"/>')
+        for k, mu in enumerate(tree.muscles):
+            gain = -float(_concrete(mu.strength, f"muscle {k}.strength"))
+            lines.append(f'    <general name="u{len(tree.motors) + k}" tendon="m{k}" ctrllimited="true" '
+                         f'ctrlrange="0 1" gaintype="fixed" gainprm="{_num(gain)}" biastype="none"/>')
         lines.append("  </actuator>")
     lines.append("</mujoco>")
     return "\n".join(lines) + "\n"
@@ -193,6 +220,9 @@ def _joint(tree: Tree, k: int, j, b: int) -> str:
                   if stiffness else "")
         return (f'<joint name="q{k}" type="{kind}" axis="{_vec(j.axis)}" pos="{_vec(j.pos)}"'
                 f' ref="{_num(j.ref)}" limited="false"{common}{spring}/>')
+    if stiffness and isinstance(j, DFlexBall):
+        raise NotImplementedError(f"to_mjcf: joint {k} is a DFlexBall with a spring (DFlex's sin(theta/2) law), which "
+                                  "MJCF cannot state (MuJoCo's ball spring is the rotation vector's): use a Ball")
     if stiffness:  # MJCF has no rest pose for a ball's or a free joint's spring but the body as written
         rest = (np.array([1.0, 0, 0, 0]) if isinstance(j, Ball) else
                 np.concatenate([_concrete(tree.bodies[b].pos, "pos"), np.asarray(tree.bodies[b].quat)]))

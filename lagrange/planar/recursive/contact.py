@@ -98,7 +98,7 @@ def limit_torques(chain: PlanarChain, q, qd):
     idx = np.asarray(chain.limited)
     nb = q.ndim - 1
     lo, hi = param(chain.ranges[:, 0], nb), param(chain.ranges[:, 1], nb)
-    tau = chain.limits.forces(q[idx], qd[idx], lo, hi)
+    tau = chain.limits.forces(q[idx], qd[idx], lo, hi, axis=0)
     return jnp.zeros(q.shape, tau.dtype).at[idx].add(tau)
 
 
@@ -117,4 +117,4 @@ def limit_energy(chain: PlanarChain, q):
     idx = np.asarray(chain.limited)
     nb = q.ndim - 1
     lo, hi = param(chain.ranges[:, 0], nb), param(chain.ranges[:, 1], nb)
-    return jnp.sum(chain.limits.energy(q[idx], lo, hi), axis=0)
+    return jnp.sum(chain.limits.energy(q[idx], lo, hi, axis=0), axis=0)

@@ -271,6 +271,32 @@ def test_checkpointed_substeps_change_no_step_and_no_gradient(hold):
     np.testing.assert_allclose(np.asarray(g1), np.asarray(g0), rtol=1e-12, atol=1e-12 * float(jnp.max(jnp.abs(g0))))
 
 
+def test_the_mass_matrix_refreshed_every_k_substeps_is_k_substeps_held_each():
+    """``SemiImplicitEuler(hold_mass_matrix=True, mass_matrix_every=k)`` (DFlex's ``MM_caching_frequency``): 4
+    substeps refreshed every 2 are two intervals of half the length held each, bit for bit; refreshed every substep
+    they are the unheld step; ``k`` must divide the substeps and needs ``hold_mass_matrix``."""
+    chain, q0, qd0, controls = _acrobot_problem()
+    held = lg.SemiImplicitEuler(hold_mass_matrix=True)
+
+    def every(k, substeps=4):
+        solver = lg.SemiImplicitEuler(hold_mass_matrix=True, mass_matrix_every=k)
+        return lg.simulate(chain, q0, qd0, controls, 0.02, solver, substeps=substeps)
+
+    halves = lg.simulate(chain, q0, qd0, jnp.repeat(controls, 2, axis=0), 0.01, held, substeps=2)
+    refreshed = every(2)
+    np.testing.assert_array_equal(refreshed.q[-1], halves.q[-1])
+    np.testing.assert_array_equal(refreshed.qd[-1], halves.qd[-1])
+    assert not np.array_equal(refreshed.qd[-1], every(4).qd[-1])  # once per interval: another step
+    own = lg.simulate(chain, q0, qd0, controls, 0.02, lg.SemiImplicitEuler(), substeps=4)
+    np.testing.assert_allclose(every(1).qd[-1], own.qd[-1], rtol=1e-12)
+    with pytest.raises(ValueError, match=r"mass_matrix_every=3 must divide substeps=4"):
+        every(3)
+    with pytest.raises(ValueError, match=r"mass_matrix_every needs hold_mass_matrix=True"):
+        lg.SemiImplicitEuler(mass_matrix_every=2)
+    with pytest.raises(ValueError, match=r"mass_matrix_every must be None or an integer >= 1, got 0"):
+        lg.SemiImplicitEuler(hold_mass_matrix=True, mass_matrix_every=0)
+
+
 def test_gradients_through_diffrax_adjoint():
     """The same through diffeqsolve with RecursiveCheckpointAdjoint (reverse mode), and equal to the
     fixed-step path's gradient to round-off."""
