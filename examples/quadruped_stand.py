@@ -1,14 +1,10 @@
 """A quadruped read from URDF with a floating base, dropped on the ground, standing under PD position actuators.
 
-``from_urdf`` reads the robot as it ships (``floating_base=True``), a sphere on each foot presses the ground
-(``PenaltyContact``; the feet's collision geometry is a mesh, so their points are given by hand) and each joint gets
-MuJoCo's ``<position kp kv>`` (``AffineActuator.position``), its target the standing pose. Dropped 5 cm in that pose,
-it has stood if its trunk ends above half its start height, tilted < 0.3 rad. The robot: ODRI's Solo12 from
-``example-robot-data`` (``examples/assets/solo12.urdf``, 12 dof, 2.5 kg), or another, e.g. Go1 (``--urdf
-.../go1.urdf --feet FL_foot FR_foot RL_foot RR_foot --foot-radius 0.02 --pose 0 0.9 -1.8 --kp 80 --kv 2 --ke 2e4``).
-Writes ``results.json`` and ``stand.png``.
-
-    python examples/quadruped_stand.py [--seconds 2] [--out runs/quadruped_stand] [--quick]
+``from_urdf`` reads the robot as it ships (``floating_base=True``), a sphere given by hand on each foot (their
+collision geometry is a mesh) presses the ground and each joint gets MuJoCo's ``<position kp kv>``, its target the
+standing pose. Dropped 5 cm in that pose, it has stood if its trunk ends above half its start height, tilted < 0.3
+rad. The robot: ODRI's Solo12 (``examples/assets/solo12.urdf``, 12 dof, 2.5 kg), or another (``--urdf``: docs/urdf.md
+stands Go1). ``python examples/quadruped_stand.py [--seconds 2] [--out runs/quadruped_stand] [--quick]``
 """
 
 import argparse
@@ -73,8 +69,8 @@ if __name__ == "__main__":
     parser.add_argument("--foot-radius", type=float, default=0.016, help="each foot's sphere [m], at its origin")
     parser.add_argument("--pose", type=float, nargs="+", default=[0, 0.8, -1.6] * 2 + [0, -0.8, 1.6] * 2,
                         help="the joints' standing angles [rad]: all of them, or one leg's, repeated")
-    parser.add_argument("--kp", type=float, default=5.0, help="the position actuators' stiffness [N m/rad]")
-    parser.add_argument("--kv", type=float, default=0.1, help="their damping [N m s/rad]")
+    parser.add_argument("--kp", type=float, default=5.0, help="the servos' stiffness [N m/rad]")
+    parser.add_argument("--kv", type=float, default=0.1, help="the servos' damping [N m s/rad]")
     parser.add_argument("--ke", type=float, default=5e3, help="the ground's stiffness [N/m] (damping ke/100 N s/m)")
     parser.add_argument("--seconds", type=float, default=2.0)
     parser.add_argument("--out", default="runs/quadruped_stand")

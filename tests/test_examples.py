@@ -77,7 +77,7 @@ def _run(*args, ok=True, example="acrobot_swingup.py"):
 
 
 # the examples whose --help the tests read
-HELPED = (*SWINGUPS, "mjcf_import.py", "cheetah_shac.py", "ant_shac.py", "humanoid_shac.py")
+HELPED = (*SWINGUPS, "mjcf_import.py", "cheetah_shac.py", "ant_shac.py", "humanoid_shac.py", "snu_humanoid_shac.py")
 
 # Each example run as `python examples/NAME.py --help` runs it: as __main__, with its own argv and its folder first
 # on sys.path (not the working directory), in a fresh interpreter (one for all of them, the modules imported once).
@@ -209,7 +209,7 @@ def test_locomotion_examples_run_and_write_their_results(tmp_path, help_texts):
     assert res["env_steps"] == res["config"]["num_envs"] * res["config"]["short_horizon"]
     assert res["wall_clock_s"] > 0 and res["total_s"] >= res["wall_clock_s"] and res["anchor_return"] == 4800.0
     assert 0.0 <= res["succeeded_fraction"] <= 1.0 and len(res["curve"]) == 2
-    for example in ("cheetah_shac.py", "ant_shac.py", "humanoid_shac.py"):
+    for example in ("cheetah_shac.py", "ant_shac.py", "humanoid_shac.py", "snu_humanoid_shac.py"):
         out = help_texts[example]
         for flag in ("--seed", "--iterations", "--out", "--resume", "--quick", "--no-progress", "--overwrite"):
             assert flag in out, (example, flag)

@@ -12,7 +12,8 @@ A task is an immutable :class:`equinox.Module` with pure methods ``reset(key)``,
   :mod:`lagrange.tasks.locomotion`), and :class:`Ant` and :class:`Humanoid`, its 3-D ones
   (:mod:`lagrange.tasks.locomotion3d`): every one an :class:`AbstractLocomotion` (DFlex's robot, the noisy start,
   the action cost, the gait's track), planar (:class:`AbstractPlanarLocomotion`) or 3-D
-  (:class:`AbstractLocomotion3D`).
+  (:class:`AbstractLocomotion3D`); :class:`SNUHumanoid`, its muscle-actuated humanoid (:mod:`lagrange.tasks.snu`,
+  on MASS's model, :mod:`lagrange.tasks.snu_tree`).
 - :func:`balanced`, :func:`upright_error` and :func:`leaves_upright` judge an episode
   (:mod:`lagrange.tasks.poles`, with :class:`AbstractPoleTask`).
 
@@ -24,6 +25,7 @@ from lagrange.tasks.poles import AbstractPoleTask, balanced, leaves_upright, upr
 from lagrange.tasks.diffrl_cartpole import POLE_INERTIA, DiffRLCartpole
 from lagrange.tasks.locomotion import AbstractLocomotion, AbstractPlanarLocomotion, Cheetah, Hopper
 from lagrange.tasks.locomotion3d import AbstractLocomotion3D, Ant, Humanoid
+from lagrange.tasks.snu import SNUHumanoid
 from lagrange.tasks.swingup import (
     BODY_SETS,
     PAPER_TASKS,
@@ -57,6 +59,7 @@ __all__ = [
     "AbstractLocomotion3D",
     "Ant",
     "Humanoid",
+    "SNUHumanoid",
     "POLE_INERTIA",
     "balanced",
     "leaves_upright",

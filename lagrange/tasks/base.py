@@ -119,6 +119,16 @@ class AbstractTask(eqx.Module):
         """Number of actions: the chain's actuated joints ``chain.m``."""
         return self.chain.m
 
+    def controls(self, action: Float[Array, " m"]) -> Float[Array, " m"]:
+        """The chain's controls ``u`` for a clipped action (in ``[-1, 1]``): the action itself, the chain's gears
+        turning it into torques; a task whose controls are not torques maps it (the SNU humanoid's muscle
+        activations ``a / 2 + 1/2`` in ``[0, 1]``).
+
+        Args:
+            action: one action, clipped, shape ``(m,)``.
+        """
+        return action
+
     def step(self, state: TaskState, action: Float[ArrayLike, " m"]) -> TaskState:
         """One control interval ``dt`` under ``clip(action, -1, 1)`` times the chain's gear (:func:`control_step`).
 
@@ -165,8 +175,9 @@ class AbstractTask(eqx.Module):
 
 
 def control_step(task: AbstractTask, state: TaskState, action: Float[ArrayLike, " m"]) -> TaskState:
-    """One control interval ``task.dt`` (``task.substeps`` solver steps of ``task.solver``) under
-    ``clip(action, -1, 1)`` times the chain's gear; the ``step`` of every task.
+    """One control interval ``task.dt`` (``task.substeps`` solver steps of ``task.solver``) under the controls
+    ``task.controls(clip(action, -1, 1))`` (the clipped action itself, times the chain's gears, for most tasks); the
+    ``step`` of every task.
 
     Args:
         task: the task.
@@ -189,7 +200,7 @@ def control_step(task: AbstractTask, state: TaskState, action: Float[ArrayLike, 
     if kind == jnp.bool_ or jnp.issubdtype(kind, jnp.complexfloating):
         raise TypeError(f"{cls}.step: action must hold real numbers in [-1, 1], got dtype {kind}")
     a = jnp.clip(action, -1.0, 1.0)
-    q, qd = _step(task.chain, state.q, state.qd, a, task.dt, task.solver, task.substeps)
+    q, qd = _step(task.chain, state.q, state.qd, task.controls(a), task.dt, task.solver, task.substeps)
     return TaskState(q, qd, None if state.action is None else a.astype(state.action.dtype))
 
 

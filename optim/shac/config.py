@@ -131,6 +131,15 @@ class SHACConfig(AlgorithmConfig):
                                        target_alpha=0.995, critic_units=(128, 128)), **overrides)
 
     @classmethod
+    def snu_humanoid(cls, **overrides) -> "SHACConfig":
+        """The authors' SNU humanoid config (``examples/cfg/shac/snu_humanoid.yaml``): 64 envs, 2000 epochs (4.1M env
+        steps), actor lr 2e-3, critic lr 5e-4, target alpha 0.995, critic (256, 256); the rest as the defaults. The
+        actor is ``policies.Actor.for_task(task, units=(512, 256))``. ``overrides`` replace fields.
+        """
+        return dataclasses.replace(cls(num_envs=64, iterations=2000, actor_lr=2e-3, critic_lr=5e-4,
+                                       target_alpha=0.995, critic_units=(256, 256)), **overrides)
+
+    @classmethod
     def bptt(cls, task: str, **overrides) -> "SHACConfig":
         """The SHAC paper's BPTT baseline as its authors ran it (``examples/cfg/bptt/<task>.yaml``): no critic, windows
         in 32 environments that continue across epochs, 2000 epochs, the actor's lr decayed linearly, the same Adam
