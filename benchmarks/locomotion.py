@@ -53,27 +53,30 @@ import numpy as np
 from benchmarks._cli import markdown_table, read_runs, restore_runs, run_file, save_figure, subplots
 from benchmarks.algorithms import BraxPolicy
 from lagrange.compile import YNN_OFF_FLAG, compiler_options
-from lagrange.tasks import Ant, Cheetah, Hopper, Humanoid
+from lagrange.tasks import Ant, Cheetah, Hopper, Humanoid, SNUHumanoid
 from optim import SHACConfig, evaluate
 from optim.checkpoint import write_json, write_text
 from optim.locomotion_cli import locomotion_main
 
-TASKS = {"hopper": Hopper.diffrl, "cheetah": Cheetah.diffrl, "ant": Ant.diffrl, "humanoid": Humanoid.diffrl}
+TASKS = {"hopper": Hopper.diffrl, "cheetah": Cheetah.diffrl, "ant": Ant.diffrl, "humanoid": Humanoid.diffrl,
+         "snu_humanoid": SNUHumanoid.diffrl}
 ALGORITHMS = ("shac", "bptt", "ppo")
 LABELS = {"shac": "SHAC", "bptt": "BPTT", "ppo": "Brax PPO"}
 CONFIGS = {"shac": {"hopper": SHACConfig.hopper(), "cheetah": SHACConfig.cheetah(), "ant": SHACConfig.ant(),
-                    "humanoid": SHACConfig.humanoid()},
+                    "humanoid": SHACConfig.humanoid(), "snu_humanoid": SHACConfig.snu_humanoid()},
            "bptt": {t: SHACConfig.bptt(t) for t in TASKS}}
-ACTOR_UNITS = {"humanoid": (256, 128)}  # the authors' actor_mlp; (128, 64, 32) for the others
-PPO_STEPS = {"hopper": 16_384_000, "cheetah": 40_960_000, "ant": 40_960_000, "humanoid": 40_960_000}
+ACTOR_UNITS = {"humanoid": (256, 128), "snu_humanoid": (512, 256)}  # the authors' actor_mlp; (128, 64, 32) else
+PPO_STEPS = {"hopper": 16_384_000, "cheetah": 40_960_000, "ant": 40_960_000, "humanoid": 40_960_000,
+             "snu_humanoid": 40_960_000}
 PPO = dict(num_envs=1024, unroll_length=32, batch_size=256, num_minibatches=4, num_updates_per_batch=5,
            discounting=0.99, gae_lambda=0.95, learning_rate=3e-4, learning_rate_schedule="ADAPTIVE_KL",
            desired_kl=0.008, entropy_cost=0.0, clipping_epsilon=0.2, reward_scaling=0.01, max_grad_norm=1.0,
            vf_loss_coefficient=4.0, normalize_observations=True, num_evals=21)
-PPO_TASK = {"ant": dict(num_envs=2048, batch_size=512), "humanoid": dict(hidden=(256, 128, 64))}  # their yaml's
+PPO_TASK = {"ant": dict(num_envs=2048, batch_size=512), "humanoid": dict(hidden=(256, 128, 64)),  # their yaml's
+            "snu_humanoid": dict(hidden=(512, 512, 256), num_updates_per_batch=6)}
 # the AHAC paper's data for DFlex's tasks (1000-step episodes); none is published for the cheetah
 ANCHORS = {"hopper": {"SHAC": 4800, "PPO": 4775}, "ant": {"SHAC": 7660, "PPO": 6605},
-           "humanoid": {"SHAC": 8390, "PPO": 7293}}
+           "humanoid": {"SHAC": 8390, "PPO": 7293}, "snu_humanoid": {"SHAC": 6114, "PPO": 4246}}
 EVAL_EPISODES = 16
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 

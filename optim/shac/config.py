@@ -144,21 +144,22 @@ class SHACConfig(AlgorithmConfig):
         """The SHAC paper's BPTT baseline as its authors ran it (``examples/cfg/bptt/<task>.yaml``): no critic, windows
         in 32 environments that continue across epochs, 2000 epochs, the actor's lr decayed linearly, the same Adam
         betas, gradient clip and observation normalisation as SHAC. Windows of 128 steps (hopper, cheetah: 8.2M env
-        steps) or of a whole episode, 1000 steps (ant, humanoid: 64M); actor lr 1e-3 (hopper), 2e-3 (cheetah,
-        humanoid) or 4e-3 (ant).
+        steps) or of a whole episode, 1000 steps (ant, humanoid: 64M; the SNU humanoid's in 16 environments: 32M);
+        actor lr 1e-3 (hopper), 2e-3 (cheetah, humanoids) or 4e-3 (ant).
 
         Args:
-            task: ``"hopper"``, ``"cheetah"``, ``"ant"`` or ``"humanoid"``.
+            task: ``"hopper"``, ``"cheetah"``, ``"ant"``, ``"humanoid"`` or ``"snu_humanoid"``.
             overrides: fields to replace.
 
         Raises:
             ValueError: for another task name.
         """
-        settings = {"hopper": (128, 1e-3), "cheetah": (128, 2e-3), "ant": (1000, 4e-3), "humanoid": (1000, 2e-3)}
+        settings = {"hopper": (128, 1e-3, 32), "cheetah": (128, 2e-3, 32), "ant": (1000, 4e-3, 32),
+                    "humanoid": (1000, 2e-3, 32), "snu_humanoid": (1000, 2e-3, 16)}
         if task not in settings:
             raise ValueError(f"SHACConfig.bptt: task must be one of {sorted(settings)}, got {task!r}")
-        window, lr = settings[task]
-        return dataclasses.replace(cls(num_envs=32, short_horizon=window, iterations=2000, actor_lr=lr,
+        window, lr, envs = settings[task]
+        return dataclasses.replace(cls(num_envs=envs, short_horizon=window, iterations=2000, actor_lr=lr,
                                        critic_iterations=0, use_critic=False), **overrides)
 
     def env_steps_per_epoch(self) -> int:

@@ -29,23 +29,26 @@ def test_defaults_are_the_authors_cartpole_settings():
 def test_bptt_presets_are_the_authors_bptt_settings():
     """``examples/cfg/bptt/{hopper,cheetah,ant,humanoid}.yaml`` in NVlabs/DiffRL: 32 actors, 128 steps (1000 for the
     3-D tasks), 2000 epochs, lr 1e-3 / 2e-3 / 4e-3 / 2e-3 decayed linearly to 1e-5, betas (0.7, 0.95), grad norm 1,
-    obs_rms; no critic."""
-    for task, window, lr in (("hopper", 128, 1e-3), ("cheetah", 128, 2e-3), ("ant", 1000, 4e-3),
-                             ("humanoid", 1000, 2e-3)):
+    obs_rms; no critic; the SNU humanoid's 16 actors x 1000 steps."""
+    for task, window, lr, envs in (("hopper", 128, 1e-3, 32), ("cheetah", 128, 2e-3, 32), ("ant", 1000, 4e-3, 32),
+                                   ("humanoid", 1000, 2e-3, 32), ("snu_humanoid", 1000, 2e-3, 16)):
         cfg = optim.SHACConfig.bptt(task)
-        assert (cfg.num_envs, cfg.short_horizon, cfg.iterations, cfg.actor_lr, cfg.lr_end) == (32, window, 2000, lr,
+        assert (cfg.num_envs, cfg.short_horizon, cfg.iterations, cfg.actor_lr, cfg.lr_end) == (envs, window, 2000, lr,
                                                                                                1e-5)
         assert (cfg.adam_b1, cfg.adam_b2, cfg.actor_grad_norm, cfg.normalize, cfg.gamma) == (0.7, 0.95, 1.0, True, 0.99)
-        assert not cfg.use_critic and cfg.env_steps_per_epoch() * cfg.iterations == 32 * window * 2000
+        assert not cfg.use_critic and cfg.env_steps_per_epoch() * cfg.iterations == envs * window * 2000
     assert optim.SHACConfig.bptt("hopper", iterations=3).iterations == 3
-    with pytest.raises(ValueError, match=r"task must be one of \['ant', 'cheetah', 'hopper', 'humanoid'\], got 'x'"):
+    with pytest.raises(ValueError, match=r"task must be one of \['ant', 'cheetah', 'hopper', 'humanoid', "
+                                         r"'snu_humanoid'\], got 'x'"):
         optim.SHACConfig.bptt("x")
 
 
 def test_the_3d_presets_are_the_authors_settings():
     """``examples/cfg/shac/ant.yaml`` and ``humanoid.yaml``: 64 actors x 32 steps x 2000 epochs; the ant's actor and
     critic lr 2e-3 and target alpha 0.2; the humanoid's critic lr 5e-4, alpha 0.995, critic (128, 128)."""
-    ant, hum = optim.SHACConfig.ant(), optim.SHACConfig.humanoid()
+    ant, hum, snu = optim.SHACConfig.ant(), optim.SHACConfig.humanoid(), optim.SHACConfig.snu_humanoid()
+    assert (snu.num_envs, snu.iterations, snu.actor_lr, snu.critic_lr, snu.target_alpha, snu.critic_units) == (
+        64, 2000, 2e-3, 5e-4, 0.995, (256, 256))  # examples/cfg/shac/snu_humanoid.yaml
     for cfg in (ant, hum):
         assert (cfg.num_envs, cfg.short_horizon, cfg.iterations, cfg.actor_lr, cfg.lam) == (64, 32, 2000, 2e-3, 0.95)
         assert (cfg.critic_iterations, cfg.critic_minibatches, cfg.adam_b1, cfg.adam_b2) == (16, 4, 0.7, 0.95)
