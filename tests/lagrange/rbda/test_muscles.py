@@ -144,3 +144,26 @@ def test_a_planar_tree_with_muscles_runs_on_the_general_algorithms():
     forced = lg.forward_dynamics(tree, q, qd, u) - lg.forward_dynamics(tree, q, qd, jnp.zeros(1))
     J = jax.jacfwd(lambda x: lg.muscle_lengths(tree, x))(q)
     assert rel(lg.mass_matrix(tree, q) @ forced, -10.0 * J[0]) <= TIGHT
+
+
+def test_a_length_dependent_law_is_a_subclass_that_reads_the_length():
+    """A Hill-type law is a subclass: its ``tension`` reads ``L`` (``length_dependent``), muscles of two classes mix in
+    one tree, and each pulls with its own law's ``-F(L) dL/dq``."""
+
+    class Scaled(lg.Muscle):
+        length_dependent = True
+
+        def tension(self, activation, length, velocity):
+            return activation * self.strength * (1.0 - (length - 0.3) ** 2)
+
+    tree = _arm()
+    first = tree.muscles[0]
+    mixed = lg.Tree(tree.bodies, motors=tree.motors, muscles=[Scaled(list(zip(first.bodies, first.points)), 100.0),
+                                                               tree.muscles[1]])
+    q, qd = (jnp.asarray(x) for x in _state(np.random.default_rng(5), tree))
+    u = jnp.asarray([0.0, 0.6, 0.4])
+    L = np.asarray(lg.muscle_lengths(mixed, q))
+    J = np.asarray(jax.jacfwd(lambda d: lg.muscle_lengths(mixed, rbda.integrate_positions(mixed, q, d, 1.0)))(
+        jnp.zeros(mixed.nv)))
+    F = np.array([0.6 * 100.0 * (1.0 - (L[0] - 0.3) ** 2), 0.4 * 50.0])
+    assert rel(rbda.muscle_torques(mixed, q, qd, u), -F @ J) <= TIGHT
