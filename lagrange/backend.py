@@ -76,7 +76,8 @@ class AbstractBackend(eqx.Module):
     @abc.abstractmethod
     def actuation(self, u, q=None, qd=None):
         """The actuators' generalized forces, ``B u`` with ``u`` clamped into the motors' ranges (and the state's terms
-        of the actuators that have them, at ``q`` and ``qd``), ``(*batch, nv)``; ``None`` without control."""
+        of the actuators that have them, and the muscles' ``-F dL/dq``, at ``q`` and ``qd``), ``(*batch, nv)``;
+        ``None`` without control."""
 
     def actuated_forces(self, q, qd, u=None):
         """``actuation(u, q, qd) - bias_forces(q, qd)``, the right-hand side of ``M qdd = tau - bias``,
