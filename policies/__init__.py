@@ -3,9 +3,10 @@ observation normaliser. Every policy is a :class:`AbstractPolicy` (``policy(obs,
 hidden)``, built for a task by ``for_task`` and redrawn by ``reinit``)."""
 
 from policies.actor_critic import Actor, Critic
-from policies.base import AbstractPolicy
+from policies.base import AbstractFeedForwardPolicy, AbstractPolicy
 from policies.gru import GRUPolicy
 from policies.mlp import MLPPolicy
 from policies.normalizer import BraxNormalizer, Normalizer
 
-__all__ = ["AbstractPolicy", "GRUPolicy", "MLPPolicy", "Actor", "Critic", "Normalizer", "BraxNormalizer"]
+__all__ = ["AbstractPolicy", "AbstractFeedForwardPolicy", "GRUPolicy", "MLPPolicy", "Actor", "Critic", "Normalizer",
+           "BraxNormalizer"]

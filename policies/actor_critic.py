@@ -16,9 +16,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.typing import DTypeLike
-from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
+from jaxtyping import Array, ArrayLike, Float, PRNGKeyArray
 
-from policies.base import AbstractPolicy, check_size
+from policies.base import AbstractFeedForwardPolicy, check_size
 
 __all__ = ["Actor", "Critic"]
 
@@ -64,7 +64,7 @@ class _MLP(eqx.Module):
 
 
 @final
-class Actor(AbstractPolicy):
+class Actor(AbstractFeedForwardPolicy):
     """Stochastic tanh-Gaussian actor: ``a = tanh(mu(obs) + exp(log_std) eps)``, ``eps ~ N(0, I)``
     (:meth:`sample`); ``log_std`` (action_size,) does not depend on the state. ``obs`` is the normalised
     observation. As a rollout policy, ``actor(obs, hidden, reset) -> (action, hidden)`` with an empty hidden
@@ -132,16 +132,6 @@ class Actor(AbstractPolicy):
             The action in ``(-1, 1)``, shape ``(action_size,)``, dimensionless.
         """
         return jnp.tanh(self.mu(obs))
-
-    def __call__(
-        self,
-        obs: Float[ArrayLike, " obs_size"],
-        hidden: Float[Array, " 0"],
-        reset: Bool[ArrayLike, ""] = False,
-    ) -> tuple[Float[Array, " action_size"], Float[Array, " 0"]]:
-        """One step of the actor as a rollout policy (:meth:`AbstractPolicy.__call__`): ``(deterministic(obs),
-        hidden)``, the empty hidden state (shape ``(0,)``) unchanged and ``reset`` unused."""
-        return self.deterministic(obs), hidden
 
 
 class Critic(eqx.Module):

@@ -10,7 +10,7 @@ from equinox import AbstractVar
 from jax.typing import DTypeLike
 from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
-__all__ = ["AbstractPolicy", "check_size"]
+__all__ = ["AbstractPolicy", "AbstractFeedForwardPolicy", "check_size"]
 
 
 def check_size(cls: str, name: str, value, minimum: int = 1) -> int:
@@ -92,3 +92,26 @@ class AbstractPolicy(eqx.Module):
             ``(action, hidden)``: the action in ``[-1, 1]``, shape ``(action_size,)`` (dimensionless; the task
             multiplies it by the chain's gear), and the new hidden state.
         """
+
+
+class AbstractFeedForwardPolicy(AbstractPolicy):
+    """A stateless policy: its action is :meth:`deterministic` of the observation alone. As a rollout policy it takes
+    and returns an empty hidden state (``hidden_size`` 0), so that rollouts treat every policy alike."""
+
+    @abc.abstractmethod
+    def deterministic(self, obs: Float[ArrayLike, " obs_size"]) -> Float[Array, " action_size"]:
+        """The action for ``obs``, in ``[-1, 1]``, shape ``(action_size,)``, dimensionless.
+
+        Args:
+            obs: the (normalised) observation, shape ``(obs_size,)``.
+        """
+
+    def __call__(
+        self,
+        obs: Float[ArrayLike, " obs_size"],
+        hidden: Float[Array, " 0"],
+        reset: Bool[ArrayLike, ""] = False,
+    ) -> tuple[Float[Array, " action_size"], Float[Array, " 0"]]:
+        """One step of the policy (:meth:`AbstractPolicy.__call__`): ``(deterministic(obs), hidden)``, the empty
+        hidden state (shape ``(0,)``) unchanged and ``reset`` unused."""
+        return self.deterministic(obs), hidden

@@ -8,15 +8,15 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jax.typing import DTypeLike
-from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
+from jaxtyping import Array, ArrayLike, Float, PRNGKeyArray
 
-from policies.base import AbstractPolicy, check_size
+from policies.base import AbstractFeedForwardPolicy, check_size
 
 __all__ = ["MLPPolicy"]
 
 
 @final
-class MLPPolicy(AbstractPolicy):
+class MLPPolicy(AbstractFeedForwardPolicy):
     """Deterministic MLP: ``depth`` hidden layers of ``width`` with ReLU, then Dense(action) + tanh.
 
     Stateless, but it takes and returns a (0,)-sized hidden state so that rollouts treat every
@@ -53,12 +53,11 @@ class MLPPolicy(AbstractPolicy):
         m = self.mlp
         return MLPPolicy(m.in_size, m.out_size, m.width_size, m.depth, key=key, dtype=m.layers[-1].weight.dtype)
 
-    def __call__(
-        self,
-        obs: Float[ArrayLike, " obs_size"],
-        hidden: Float[Array, " 0"],
-        reset: Bool[ArrayLike, ""] = False,
-    ) -> tuple[Float[Array, " action_size"], Float[Array, " 0"]]:
-        """One step of the policy, as :meth:`AbstractPolicy.__call__` (unbatched; ``jax.vmap`` it over environments):
-        ``(mlp(obs), hidden)``, the empty hidden state (shape ``(0,)``) unchanged and ``reset`` unused."""
-        return self.mlp(obs), hidden
+    def deterministic(self, obs: Float[ArrayLike, " obs_size"]) -> Float[Array, " action_size"]:
+        """The action ``mlp(obs)`` in ``(-1, 1)``, shape ``(action_size,)`` (unbatched; ``jax.vmap`` it over
+        environments).
+
+        Args:
+            obs: the (normalised) observation, shape ``(obs_size,)``.
+        """
+        return self.mlp(obs)

@@ -132,12 +132,11 @@ class SHACConfig(AlgorithmConfig):
 
     @classmethod
     def snu_humanoid(cls, **overrides) -> "SHACConfig":
-        """The authors' SNU humanoid config (``examples/cfg/shac/snu_humanoid.yaml``): 64 envs, 2000 epochs (4.1M env
-        steps), actor lr 2e-3, critic lr 5e-4, target alpha 0.995, critic (256, 256); the rest as the defaults. The
-        actor is ``policies.Actor.for_task(task, units=(512, 256))``. ``overrides`` replace fields.
+        """The authors' SNU humanoid config (``examples/cfg/shac/snu_humanoid.yaml``): the humanoid's (:meth:`humanoid`)
+        with a critic of (256, 256). The actor is ``policies.Actor.for_task(task, units=(512, 256))``. ``overrides``
+        replace fields.
         """
-        return dataclasses.replace(cls(num_envs=64, iterations=2000, actor_lr=2e-3, critic_lr=5e-4,
-                                       target_alpha=0.995, critic_units=(256, 256)), **overrides)
+        return cls.humanoid(**{"critic_units": (256, 256), **overrides})
 
     @classmethod
     def bptt(cls, task: str, **overrides) -> "SHACConfig":
