@@ -156,24 +156,19 @@ def check_laws(contact, limits, contact_links: tuple[int, ...], limited: tuple[i
     from lagrange.model.contact import PenaltyContact
     from lagrange.model.limits import PenaltyLimits
 
-    if contact is not None and not isinstance(contact, PenaltyContact):
-        raise TypeError(f"Chain.contact must be a lagrange.PenaltyContact or None, got {type(contact).__name__}")
-    if limits is not None and not isinstance(limits, PenaltyLimits):
-        raise TypeError(f"Chain.limits must be a lagrange.PenaltyLimits or None, got {type(limits).__name__}")
-    if (contact is None) != (not contact_links):
-        raise ValueError(
-            f"Chain: links {sorted(set(contact_links))} have contact points but the chain has no contact "
-            "law: pass Chain(..., contact=lagrange.PenaltyContact(ke, kd, kf, mu)), or drop the points"
-            if contact is None else
-            "Chain.contact is given but no link has contact points: give links Link(..., contacts=[(x, z, "
-            "radius), ...]), or drop contact")
-    if (limits is None) != (not limited):
-        raise ValueError(
-            f"Chain: links {list(limited)} have a range but the chain has no limit law: pass "
-            "Chain(..., limits=lagrange.PenaltyLimits(ke, kd)), or drop the ranges"
-            if limits is None else
-            "Chain.limits is given but no link has a range: give links Link(..., range=(lower, upper)), or drop "
-            "limits")
+    for field, law, cls, links, points, name, args, example, drop in (
+            ("contact", contact, PenaltyContact, sorted(set(contact_links)), "contact points", "contact law",
+             "ke, kd, kf, mu", "contacts=[(x, z, radius), ...]", "points"),
+            ("limits", limits, PenaltyLimits, list(limited), "a range", "limit law", "ke, kd",
+             "range=(lower, upper)", "ranges")):
+        if law is not None and not isinstance(law, cls):
+            raise TypeError(f"Chain.{field} must be a lagrange.{cls.__name__} or None, got {type(law).__name__}")
+        if law is None and links:
+            raise ValueError(f"Chain: links {links} have {points} but the chain has no {name}: pass Chain(..., "
+                             f"{field}=lagrange.{cls.__name__}({args})), or drop the {drop}")
+        if law is not None and not links:
+            raise ValueError(f"Chain.{field} is given but no link has {points}: give links Link(..., {example}), or "
+                             f"drop {field}")
 
 
 def check_parents(links: tuple) -> tuple[int, ...]:
