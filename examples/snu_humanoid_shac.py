@@ -2,7 +2,7 @@
 with the authors' settings.
 
     python examples/snu_humanoid_shac.py            # the authors' 2000 epochs x 64 envs x 32 steps (4.1M env steps)
-    python examples/snu_humanoid_shac.py --quick    # 100 epochs: a few steps forward, then a fall
+    python examples/snu_humanoid_shac.py --quick    # 100 epochs, 12-15 minutes: a demo, not yet a gait
     python examples/snu_humanoid_shac.py --resume   # continue an interrupted run
 
 Writes ``checkpoint.eqx``, ``results.json`` (the deterministic policy's mean return over 16 episodes, env steps,
