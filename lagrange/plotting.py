@@ -153,7 +153,8 @@ def gait_figure(task: AbstractTask, q, actions, path: str, *, rewards=None, titl
 def gait_animation(task: AbstractTask, q, path: str, *, every: int | None = None, width: float = 4.0,
                    seconds: float | None = 4.0) -> None:
     """Animate a robot on the ground through the coordinates ``q`` (T + 1, n) to ``path`` (GIF): each link's capsules
-    (pairs of its contact points, drawn with their radius), the ground, the view following the root.
+    (pairs of its contact points, drawn with their radius; a body whose points all have radius 0, a box's corners, as
+    the outline of its points seen from the side), the ground, the view following the root.
 
     Args:
         task: a task whose chain has contact points (the locomotion tasks).
@@ -165,7 +166,7 @@ def gait_animation(task: AbstractTask, q, path: str, *, every: int | None = None
     """
     from matplotlib import animation
     from matplotlib.figure import Figure
-    from matplotlib.patches import Circle
+    from matplotlib.patches import Circle, Polygon
 
     chain = task.chain
     every = every or max(1, int(round(0.05 / task.dt)))
@@ -177,8 +178,10 @@ def gait_animation(task: AbstractTask, q, path: str, *, every: int | None = None
     radius = np.array([c[3] for b in chain.bodies for c in b.contacts])
     counts = [len(b.contacts) for b in chain.bodies]
     firsts = np.cumsum([0] + counts[:-1])
-    capsules = [(f + k, f + k + 1) for f, c in zip(firsts, counts) for k in range(c % 2, c - 1, 2)]
-    spheres = [f for f, c in zip(firsts, counts) if c % 2]
+    boxy = [c >= 3 and not np.any(radius[f:f + c]) for f, c in zip(firsts, counts)]  # corners: drawn as outlines
+    outlines = [np.arange(f, f + c) for f, c, b in zip(firsts, counts, boxy) if b]
+    capsules = [(f + k, f + k + 1) for f, c, b in zip(firsts, counts, boxy) if not b for k in range(c % 2, c - 1, 2)]
+    spheres = [f for f, c, b in zip(firsts, counts, boxy) if c % 2 and not b]
     if pts.shape[-2] == 0:
         raise ValueError("gait_animation draws the robot from its contact points; this one has none")
     ground = float(chain.contact.ground)
@@ -192,6 +195,7 @@ def gait_animation(task: AbstractTask, q, path: str, *, every: int | None = None
     lines = [ax.plot([], [], lw=2 * radius[a] * scale, solid_capstyle="round", color="tab:blue")[0]
              for a, b in capsules]
     discs = [ax.add_patch(Circle((0, 0), radius[k], color="tab:blue")) for k in spheres]
+    shapes = [ax.add_patch(Polygon(np.zeros((3, 2)), color="tab:blue")) for _ in outlines]
     for x in np.arange(np.floor(q[:, 0].min()) - width, q[:, 0].max() + width, 1.0):  # metre marks on the ground
         ax.axvline(x, color="0.7", lw=0.5)
     text = ax.text(0.02, 0.95, "", transform=ax.transAxes, fontsize=8, va="top")
@@ -203,8 +207,32 @@ def gait_animation(task: AbstractTask, q, path: str, *, every: int | None = None
             line.set_data(pts[i, [a, b], 0], pts[i, [a, b], 1])
         for disc, k in zip(discs, spheres):
             disc.center = (pts[i, k, 0], pts[i, k, 1])
+        for shape, idx in zip(shapes, outlines):
+            shape.set_xy(convex_hull(pts[i, idx]))
         text.set_text(f"t = {i * every * task.dt:4.2f} s, x = {centre:5.2f} m")
-        return lines + discs + [text]
+        return lines + discs + shapes + [text]
 
     anim = animation.FuncAnimation(fig, frame, frames=pts.shape[0], blit=False)
     anim.save(path, writer=animation.PillowWriter(fps=int(round(1 / (every * task.dt)))))
+
+
+def convex_hull(points) -> np.ndarray:
+    """The convex hull of 2-D points, its corners counter-clockwise (Andrew's monotone chain), shape ``(k, 2)``.
+
+    Args:
+        points: shape ``(n, 2)``, ``n >= 1``.
+    """
+    p = np.unique(np.asarray(points, dtype=float), axis=0)  # sorted by x, then y
+    if len(p) < 3:
+        return p
+
+    def half(ps):
+        out = []
+        for x in ps:
+            while len(out) >= 2 and ((out[-1][0] - out[-2][0]) * (x[1] - out[-2][1])
+                                     - (out[-1][1] - out[-2][1]) * (x[0] - out[-2][0])) <= 0:
+                out.pop()
+            out.append(x)
+        return out[:-1]
+
+    return np.array(half(p) + half(p[::-1]))

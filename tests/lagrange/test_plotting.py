@@ -52,3 +52,30 @@ def test_animation_has_one_frame_per_every_steps(tmp_path):
     q, _, _ = _episode(task)
     episode_animation(task, q, tmp_path / "a.gif", every=5)
     assert Image.open(tmp_path / "a.gif").n_frames == 5  # steps 0, 5, 10, 15, 20
+
+
+def test_convex_hull_keeps_the_corners_counter_clockwise():
+    from lagrange.plotting import convex_hull
+
+    rng = np.random.default_rng(0)
+    square = np.array([[-5.0, -5.0], [5.0, -5.0], [5.0, 5.0], [-5.0, 5.0]])
+    inside = rng.uniform(-4.9, 4.9, (50, 2))
+    np.testing.assert_array_equal(convex_hull(np.vstack([inside, square[::-1], square[:2]])), square)
+    np.testing.assert_array_equal(convex_hull([[1.0, 2.0], [1.0, 2.0]]), [[1.0, 2.0]])
+
+
+def test_gait_animation_draws_boxes_from_their_corners(tmp_path):
+    """The SNU humanoid's bodies are boxes whose contact points are corners of radius 0: each is drawn as its outline
+    seen from the side, so the standing figure's frame holds about the pixels of its side-view silhouette (it was
+    drawn as capsules of width 0, an empty frame)."""
+    from lagrange.plotting import gait_animation
+
+    task = tasks.SNUHumanoid.diffrl()
+    q = jnp.stack([task.reset(jax.random.PRNGKey(0)).q] * 3)
+    gait_animation(task, q, tmp_path / "gait.gif")
+    frame = np.asarray(Image.open(tmp_path / "gait.gif").convert("RGB")).astype(int)
+    blue = np.all(np.abs(frame - np.array([31, 119, 180])) < 40, axis=-1)
+    rows = np.flatnonzero(blue.any(axis=1))
+    assert blue.sum() > 500  # the pelvis, the legs and the feet
+    # from the feet to the pelvis: ~1 m of the 1.33-m view, which spans ~77 % of the frame's height (81 of 161 rows)
+    assert rows.max() - rows.min() > 0.4 * frame.shape[0]
