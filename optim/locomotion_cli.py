@@ -112,15 +112,31 @@ def locomotion_main(description: str, default_out: str, make_task: Callable[[], 
         "curve": run.curve, "config": dataclasses.asdict(cfg),
     }
     results = write_results(os.path.join(args.out, "results.json"), results)
-    learning_curves(history, run.curve, os.path.join(args.out, "learning_curve.png"),
+    episode_figures(task, ep, args.out, history=history, curve=run.curve,
                     title=f"{algorithm} on {task.name} (seed {args.seed})", anchor=anchor)
-    gait_figure(task, ep.q, ep.actions, os.path.join(args.out, "gait.png"), rewards=ep.rewards,
-                title=f"{task.name}: return {float(ep.ret):.0f}, {results['example_episode_distance_m']:.1f} m")
-    gait_animation(task, ep.q, os.path.join(args.out, "gait.gif"))
     print(f"return {results['return']:.0f} +- {results['return_std']:.0f} over {EVAL_EPISODES} episodes "
           f"(untrained {results['untrained_return']:.0f}); {results['env_steps']:.2e} env steps, "
           f"{results['wall_clock_s']:.0f} s training, {results['total_s']:.0f} s in all")
     return results
+
+
+def episode_figures(task: AbstractTask, ep, out: str, *, history: list[dict], curve: list[dict], title: str,
+                    anchor: float | None) -> None:
+    """Write a run's ``learning_curve.png`` and its episode's ``gait.png`` and ``gait.gif`` to ``out``.
+
+    Args:
+        task: the locomotion task.
+        ep: one deterministic episode of the policy (:func:`optim.episode.episode`).
+        out: the folder.
+        history: :attr:`optim.TrainResult.history`.
+        curve: :attr:`optim.TrainResult.curve`.
+        title: the learning curve's title.
+        anchor: a published return to draw, or None.
+    """
+    learning_curves(history, curve, os.path.join(out, "learning_curve.png"), title=title, anchor=anchor)
+    gait_figure(task, ep.q, ep.actions, os.path.join(out, "gait.png"), rewards=ep.rewards,
+                title=f"{task.name}: return {float(ep.ret):.0f}, {float(ep.q[-1, 0] - ep.q[0, 0]):.1f} m")
+    gait_animation(task, ep.q, os.path.join(out, "gait.gif"))
 
 
 def learning_curves(history: list[dict], curve: list[dict], path: str, *, title: str,

@@ -21,12 +21,11 @@ import jax
 import numpy as np
 
 from lagrange.compile import compiler_options
-from lagrange.plotting import gait_animation, gait_figure
 from lagrange.tasks import SNUHumanoid
 from optim import load
 from optim.cli import EVAL_EPISODES
 from optim.episode import episode, evaluate
-from optim.locomotion_cli import learning_curves
+from optim.locomotion_cli import episode_figures
 from policies import Actor
 
 
@@ -44,9 +43,9 @@ def main(argv=None) -> dict:
     policy, norm = trainer.policy(state)
     history, curve = head["history"], head["curve"]
     key = jax.random.PRNGKey(10_000 + args.seed)
-    opts = compiler_options(task.chain)
-    returns, ok = jax.jit(lambda k: evaluate(task, policy, norm, k, EVAL_EPISODES), compiler_options=opts)(key)
-    ep = jax.jit(lambda k: episode(task, policy, norm, k), compiler_options=opts)(key)
+    returns, ok = jax.jit(lambda k: evaluate(task, policy, norm, k, EVAL_EPISODES),
+                          compiler_options=compiler_options(task.chain))(key)
+    ep = jax.jit(lambda k: episode(task, policy, norm, k), compiler_options=compiler_options(task.chain))(key)
     out = {
         "epoch": int(head["iteration"]), "training_s": history[-1]["elapsed"], "env_steps": history[-1]["env_steps"],
         "return": float(np.mean(returns)), "return_std": float(np.std(returns)), "stayed_up": float(np.mean(ok)),
@@ -55,11 +54,8 @@ def main(argv=None) -> dict:
     }
     with open(os.path.join(args.out, "snapshot.json"), "w") as f:
         json.dump(out, f, indent=1)
-    learning_curves(history, curve, os.path.join(args.out, "learning_curve.png"),
-                    title=f"SHAC on snu_humanoid (seed {args.seed}, epoch {out['epoch']})", anchor=4246.0)
-    gait_figure(task, ep.q, ep.actions, os.path.join(args.out, "gait.png"), rewards=ep.rewards,
-                title=f"snu_humanoid: return {float(ep.ret):.0f}, {out['example_episode_distance_m']:.1f} m")
-    gait_animation(task, ep.q, os.path.join(args.out, "gait.gif"))
+    episode_figures(task, ep, args.out, history=history, curve=curve, anchor=4246.0,
+                    title=f"SHAC on snu_humanoid (seed {args.seed}, epoch {out['epoch']})")
     print(json.dumps({k: v for k, v in out.items() if k != "curve"}))
     return out
 
