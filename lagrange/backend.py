@@ -2,7 +2,7 @@
 gives.
 
 :func:`lagrange.dynamics.backend` prepares a tree (its parameters checked and folded) and picks the backend, once per
-public call: the planar ones (:class:`lagrange.planar.backend.Unrolled`, :class:`lagrange.planar.backend.Recursive`)
+public call: the planar ones (:class:`lagrange.planar.unrolled.Unrolled`, :class:`lagrange.planar.recursive.Recursive`)
 for a planar tree, the general rigid-body algorithms (:class:`lagrange.rbda.backend.General`) for any other. The
 public functions of :mod:`lagrange.dynamics` and :func:`lagrange.simulate` check their arguments and call these
 methods, which check nothing. Shapes: ``q (*batch, nq)``, ``qd`` and ``qdd (*batch, nv)``, ``u (*batch, m)``.
@@ -37,6 +37,16 @@ class AbstractBackend(eqx.Module):
     @abc.abstractmethod
     def nv(self) -> int:
         """Number of velocities."""
+
+    @property
+    @abc.abstractmethod
+    def m(self) -> int:
+        """Number of controls."""
+
+    @abc.abstractmethod
+    def check_coordinates(self, name: str, q) -> None:
+        """Raise a ``ValueError`` naming ``name`` where concrete coordinates ``q`` cannot be normalised (a zero
+        quaternion); traced ones pass."""
 
     @property
     @abc.abstractmethod

@@ -19,10 +19,10 @@ This module checks the arguments and the parameters once, at the public entry, a
 
 - a planar tree (:attr:`lagrange.Tree.planar`: hinges about one axis, slides across it), lowered to the planar
   backend's chain while tracing (:func:`lagrange.planar.lower.lower`): of fewer than ``RECURSIVE_MIN`` links the
-  unrolled derivation (:class:`~lagrange.planar.backend.Unrolled`), where ``J_i`` and ``(dJ_i/dt) qd`` are
+  unrolled derivation (:class:`~lagrange.planar.unrolled.Unrolled`), where ``J_i`` and ``(dJ_i/dt) qd`` are
   differentiated at trace time from the forward kinematics written as sums of unit vectors, simplified at trace time,
   so the compiled program contains only the terms the chain has, and ``M qdd = rhs`` is solved unrolled over scalars;
-  of ``RECURSIVE_MIN`` or more the recursive algorithms (:class:`~lagrange.planar.backend.Recursive`: ABA, RNEA, CRBA
+  of ``RECURSIVE_MIN`` or more the recursive algorithms (:class:`~lagrange.planar.recursive.Recursive`: ABA, RNEA, CRBA
   as scans over the links), whose work grows like n rather than n^3;
 - any other tree (balls, free joints, hinges about several axes): the general rigid-body algorithms
   (:class:`~lagrange.rbda.backend.General`), which take a planar tree too (``general=True``).
@@ -49,8 +49,9 @@ from lagrange.backend import AbstractBackend
 from lagrange.forces import actuation_matrix
 from lagrange.model.checks import check_parameters, check_shapes
 from lagrange.model.tree import Tree, check_tree
-from lagrange.planar.backend import Recursive, Unrolled
+from lagrange.planar.recursive import Recursive
 from lagrange.planar.lower import lower
+from lagrange.planar.unrolled import Unrolled
 from lagrange.rbda.backend import General
 
 __all__ = ["RECURSIVE_MIN", "SINGULAR", "actuation_matrix", "backend", "bias_forces", "energy", "forward_dynamics",
@@ -99,7 +100,7 @@ library's training loops, gains most. Hence 4 (a vmapped function is traced once
 depend on the batch size)."""
 
 
-def backend(tree: Tree, *, check: bool = True, general: bool = False) -> AbstractBackend:
+def backend(tree: Tree, *, check: bool = True, general: bool = False, name: str = "the model") -> AbstractBackend:
     """The tree prepared for the backend that derives its equations: the one place that chooses, by the tree's
     structure (the module docstring).
 
@@ -108,19 +109,20 @@ def backend(tree: Tree, *, check: bool = True, general: bool = False) -> Abstrac
         check: also check its traced parameters when run (:func:`lagrange.model.checks.check_parameters`; concrete
             ones are checked now either way).
         general: the general rigid-body algorithms even for a planar tree (a cross-check of the planar backend).
+        name: what the errors call ``tree``.
 
     Returns:
         The :class:`~lagrange.backend.AbstractBackend`, its concrete parameters folded to NumPy arrays.
 
     Raises:
-        TypeError: for a model that is not a :class:`lagrange.Tree`.
+        TypeError: for a model that is not a :class:`lagrange.Tree`, naming ``name``.
         ValueError: for a concrete parameter that breaks its rule.
     """
-    check_tree(tree)
     key = _key(tree, check, general)
     if key is not None and key in _PREPARED:  # a concrete tree prepared before: checked and lowered already
         _PREPARED.move_to_end(key)
         return _PREPARED[key]
+    check_tree(tree, name)
     tree = _folded(check_parameters(tree, at_run_time=check))
     chain = None if general or not tree.planar else lower(tree)
     if chain is None:
@@ -141,7 +143,9 @@ second trace) is not checked and lowered again."""
 
 def _key(tree: Tree, check: bool, general: bool):
     """The tree's static structure and the bytes of its parameters, or ``None`` where one is traced (a tree being
-    differentiated or vmapped is prepared afresh)."""
+    differentiated or vmapped is prepared afresh) or for anything but a tree (refused by :func:`backend`)."""
+    if not isinstance(tree, Tree):
+        return None
     leaves, treedef = jax.tree_util.tree_flatten(tree)
     if any(isinstance(x, jax.core.Tracer) or (isinstance(x, jax.Array) and not x.is_fully_addressable)
            for x in leaves):

@@ -17,10 +17,42 @@ import jax.numpy as jnp
 import numpy as np
 
 from lagrange.backend import AbstractBackend
-from lagrange.integrate.solvers import MomentumEuler, SemiImplicitEuler, is_adaptive_capable
-from lagrange.math.linalg import spd_solver
+from lagrange.integrate.solvers import SOLVERS, Euler, MomentumEuler, SemiImplicitEuler, is_adaptive_capable
 
-__all__ = ["interval_map"]
+__all__ = ["check_solver", "interval_map"]
+
+
+def check_solver(solver: object) -> None:
+    """Raise a ``TypeError`` naming the allowed solvers unless ``solver`` is an instance of one of them."""
+    if isinstance(solver, (SemiImplicitEuler, MomentumEuler, Euler, diffrax.AbstractERK)):
+        return
+    if isinstance(solver, type):
+        raise TypeError(
+            f"solver must be a solver instance, got the class {solver.__name__}; write {solver.__name__}()"
+        )
+    names = ", ".join(f"lagrange.{c.__name__}()" for c in SOLVERS)
+    raise TypeError(
+        f"solver must be one of {names} or another explicit diffrax Runge-Kutta solver, got {solver!r}"
+    )
+
+
+def _spd_solver(A):
+    """``b -> A^-1 b`` for a (batch of) symmetric positive-definite array ``A`` of shape ``(*batch, n, n)``, factored
+    once by Cholesky (for solving with the same matrix several times, as :class:`lagrange.MomentumEuler` does).
+
+    Args:
+        A: shape ``(*batch, n, n)``.
+
+    Returns:
+        A function of ``b`` (shape ``(*batch, n)``) returning ``A^-1 b`` (shape ``(*batch, n)``).
+    """
+    L = jnp.linalg.cholesky(A)
+
+    def solve(b):
+        y = jax.lax.linalg.triangular_solve(L, b[..., None], left_side=True, lower=True)
+        return jax.lax.linalg.triangular_solve(L, y, left_side=True, lower=True, transpose_a=True)[..., 0]
+
+    return solve
 
 
 def _needed_stages(tableau) -> list[bool]:
@@ -103,7 +135,7 @@ def _momentum_euler_step(b: AbstractBackend, iterations: int, h, q, qd, u):
     if actuation is not None:
         force = force + actuation
     A = M if b.damping is None else M + h * jnp.diag(b.damping)
-    solve = spd_solver(A)
+    solve = _spd_solver(A)
     # dT/dq at fixed v; the sum over a batch leaves each state's gradient its own
     dkin_dq = jax.grad(lambda q_, v: jnp.sum(b.energy(q_, v)[0]))
     v = qd
@@ -111,7 +143,7 @@ def _momentum_euler_step(b: AbstractBackend, iterations: int, h, q, qd, u):
         v = solve(p + h * (force + dkin_dq(q, v)))
     q1 = q + h * v
     p1 = jnp.einsum("...ij,...j->...i", M, v)
-    return q1, spd_solver(b.mass_matrix(q1))(p1)
+    return q1, _spd_solver(b.mass_matrix(q1))(p1)
 
 
 def _fixed_substep(b: AbstractBackend, solver, h, q, qd, u):
@@ -144,7 +176,7 @@ def _held_mass_matrix_interval(b: AbstractBackend, solver: SemiImplicitEuler, h,
         M = b.mass_matrix(q)
         if solver.implicit_damping and b.damping is not None:
             M = M + h * jnp.diag(b.damping)
-        solve = spd_solver(M)
+        solve = _spd_solver(M)
         Bu = None if u is None or b.state_dependent_actuation else b.actuation(u)
         Bu = 0.0 if Bu is None else Bu
 

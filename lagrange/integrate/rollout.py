@@ -27,9 +27,10 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from lagrange.dynamics import backend, prepare
-from lagrange.integrate.interval import interval_map
-from lagrange.integrate.solvers import RK4, MomentumEuler, SemiImplicitEuler, check_solver
-from lagrange.model.tree import Tree, check_tree
+from lagrange.integrate.interval import check_solver, interval_map
+from lagrange.integrate.solvers import RK4, MomentumEuler, SemiImplicitEuler
+from lagrange.backend import AbstractBackend
+from lagrange.model.tree import Tree
 
 
 class Trajectory(eqx.Module):
@@ -102,20 +103,8 @@ def _real_array(name: str, x):
     return x
 
 
-def _no_zero_quaternion(tree: Tree, q):
-    """A concrete zero quaternion in ``q`` refused by name (any other length is normalised, as MuJoCo reads them)."""
-    if not isinstance(q, jax.core.Tracer):
-        for link, j in enumerate(tree.joints):
-            if j.nq > j.nv:
-                quat = np.asarray(q)[tree.qadr[link] + j.nq - 4: tree.qadr[link] + j.nq]
-                if not np.linalg.norm(quat) > 1e-12:
-                    raise ValueError(f"q0[{tree.qadr[link] + j.nq - 4}:{tree.qadr[link] + j.nq}] is joint {link}'s "
-                                     f"quaternion and must not be zero (any non-zero length is normalised), got "
-                                     f"{quat.tolist()}")
-
-
-def _check_state(tree: Tree, q, qd):
-    for name, x, size in (("q0", q, tree.nq), ("qd0", qd, tree.nv)):
+def _check_state(b: AbstractBackend, q, qd):
+    for name, x, size in (("q0", q, b.nq), ("qd0", qd, b.nv)):
         if jnp.shape(x) != (size,):
             raise ValueError(f"{name} must have shape ({size},) for this tree, got {jnp.shape(x)}")
 
@@ -179,20 +168,19 @@ def simulate(
             controls.
         equinox.EquinoxRuntimeError: (when run, with ``check=True``) if the final state is not finite.
     """
-    check_tree(tree, "tree")
+    b = backend(tree, check=check, general=general, name="tree")  # the tree checked once, before the loop
     check_solver(solver)
     _check_dt(dt)
     _check_substeps(substeps)
     _check_steps(steps)
     _check_max_steps(max_steps)
     q0, qd0 = _real_array("q0", q0), _real_array("qd0", qd0)
-    _check_state(tree, q0, qd0)
+    _check_state(b, q0, qd0)
     arrays = not callable(controls) and controls is not None
     us = _real_array("controls", controls) if arrays else None
     dtype = _float_dtype(tree, q0, qd0, us)
     q0, qd0 = q0.astype(dtype), qd0.astype(dtype)
-    _no_zero_quaternion(tree, q0)
-    b = backend(tree, check=check, general=general)  # the parameters checked once, before the loop
+    b.check_coordinates("q0", q0)
     q0 = b.normalize(q0)
     if check:
         q0, qd0, us = (_finite(name, x) for name, x in (("q0", q0), ("qd0", qd0), ("controls", us)))
@@ -208,8 +196,8 @@ def simulate(
         def body(carry, k):
             q, qd = carry
             u = _real_array("the policy's u", policy(k * dt, q, qd))
-            if u.shape != (tree.m,):
-                raise ValueError(f"the policy must return u of shape ({tree.m},), got {u.shape}")
+            if u.shape != (b.m,):
+                raise ValueError(f"the policy must return u of shape ({b.m},), got {u.shape}")
             u = u.astype(dtype)
             out = interval(q, qd, u)
             return out, (out, u)
@@ -219,11 +207,11 @@ def simulate(
         if controls is None:
             if steps is None:
                 raise ValueError("controls=None needs steps (the number of intervals, an int >= 1)")
-            us = jnp.zeros((steps, tree.m), dtype)
-        if us.ndim != 2 or us.shape[1] != tree.m:
-            raise ValueError(f"controls must have shape (T, {tree.m}) for this tree, got {us.shape}")
+            us = jnp.zeros((steps, b.m), dtype)
+        if us.ndim != 2 or us.shape[1] != b.m:
+            raise ValueError(f"controls must have shape (T, {b.m}) for this tree, got {us.shape}")
         if us.shape[0] < 1:
-            raise ValueError(f"controls must hold at least one control interval: shape (T >= 1, {tree.m}), got "
+            raise ValueError(f"controls must hold at least one control interval: shape (T >= 1, {b.m}), got "
                              f"{us.shape}")
         us = us.astype(dtype)
         if steps is not None and steps != us.shape[0]:

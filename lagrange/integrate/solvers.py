@@ -145,20 +145,6 @@ def is_adaptive_capable(solver: diffrax.AbstractSolver | SemiImplicitEuler | Mom
     return bool(np.any(np.asarray(solver.tableau.b_error) != 0))
 
 
-def check_solver(solver: object) -> None:
-    """Raise a ``TypeError`` naming the allowed solvers unless ``solver`` is an instance of one of them."""
-    if isinstance(solver, (SemiImplicitEuler, MomentumEuler, Euler, diffrax.AbstractERK)):
-        return
-    if isinstance(solver, type):
-        raise TypeError(
-            f"solver must be a solver instance, got the class {solver.__name__}; write {solver.__name__}()"
-        )
-    names = ", ".join(f"lagrange.{c.__name__}()" for c in SOLVERS)
-    raise TypeError(
-        f"solver must be one of {names} or another explicit diffrax Runge-Kutta solver, got {solver!r}"
-    )
-
-
 RENAMED = {"SymplecticEuler": "MomentumEuler"}
 """Old public names of this module's solvers and their new names; the old ones still resolve, with a warning."""
 

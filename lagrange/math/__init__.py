@@ -1,3 +1,3 @@
 """Small mathematics the algorithms share: spatial algebra (:mod:`~lagrange.math.spatial`), a polynomial
-sine and cosine (:mod:`~lagrange.math.sincos`), trace-time scalar folding (:mod:`~lagrange.math.scalar`) and small
-linear algebra (:mod:`~lagrange.math.linalg`)."""
+sine and cosine (:mod:`~lagrange.math.sincos`), and trace-time scalar folding with its small symmetric solve
+(:mod:`~lagrange.math.scalar`)."""

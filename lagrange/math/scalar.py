@@ -5,6 +5,12 @@ A *scalar* here is either a Python ``float`` (a constant known while tracing) or
 returns a Python float when the answer is known at trace time, so that multiplications by 0
 or 1, additions of 0 and whole dead branches never reach the compiled program. XLA cannot do
 this folding itself for floats (``0 * x`` is not ``0`` when ``x`` is ``inf`` or ``nan``).
+
+The symmetric positive-definite solve of the unrolled derivation is written over these scalars too
+(:func:`solve_spd`): for the few-link chains it serves (shorter than ``lagrange.dynamics.RECURSIVE_MIN``; longer
+ones reach ``qdd`` by ABA and need no solve), a LAPACK call inside a ``scan`` costs far more than the arithmetic, and
+a division, the adjugate or an LDL^T factorisation written out over scalars fuses into the surrounding elementwise
+kernel instead.
 """
 
 from __future__ import annotations
@@ -184,3 +190,84 @@ def cos_sin(angle: float) -> tuple[float, float]:
     pi/2 adds no round-off term)."""
     c, sn = math.cos(angle), math.sin(angle)
     return (0.0 if abs(c) < 1e-15 else c), (0.0 if abs(sn) < 1e-15 else sn)
+
+
+def solve_spd(M, b, like, *, pivots: bool = False):
+    """Solve ``M x = b`` for symmetric positive-definite ``M``.
+
+    ``M`` is a nested list of scalars (only ``M[i][j]`` with ``j <= i`` is read), ``b`` a list of
+    scalars. Returns a list of scalars; with ``pivots=True``, also the list of scalars that are all
+    positive exactly when ``M`` is positive definite, for a positive semi-definite ``M``: ``M[0][0]``
+    (n = 1), the determinant (n = 2, 3) or the pivots of LDL^T.
+    """
+    n = len(b)
+    if n == 1:
+        x = [div(b[0], M[0][0])]
+        return (x, [M[0][0]]) if pivots else x
+    if n in (2, 3):
+        x, det = _solve_adjugate(M, b)
+        return (x, [det]) if pivots else x
+    L = [[0.0] * n for _ in range(n)]
+    inv_d = [0.0] * n
+    d = [0.0] * n
+    for j in range(n):
+        dj = M[j][j]
+        for k in range(j):
+            dj = sub(dj, mul(mul(L[j][k], L[j][k]), d[k]))
+        d[j] = dj
+        inv_d[j] = div(1.0, dj)
+        for i in range(j + 1, n):
+            lij = M[i][j]
+            for k in range(j):
+                lij = sub(lij, mul(mul(L[i][k], L[j][k]), d[k]))
+            L[i][j] = mul(lij, inv_d[j])
+    y = list(b)
+    for i in range(n):
+        for k in range(i):
+            y[i] = sub(y[i], mul(L[i][k], y[k]))
+    x = [mul(y[i], inv_d[i]) for i in range(n)]
+    for i in reversed(range(n)):
+        for k in range(i + 1, n):
+            x[i] = sub(x[i], mul(L[k][i], x[k]))
+    return (x, d) if pivots else x
+
+
+def _solve_adjugate(M, b):
+    """Cramer's rule for symmetric 2x2 and 3x3 systems: one division, as written by hand. Returns ``(x, det M)``."""
+    if len(b) == 2:
+        a, c, d = M[0][0], M[1][0], M[1][1]
+        det = sub(mul(a, d), mul(c, c))
+        inv_det = div(1.0, det)
+        return [
+            mul(sub(mul(d, b[0]), mul(c, b[1])), inv_det),
+            mul(sub(mul(a, b[1]), mul(c, b[0])), inv_det),
+        ], det
+    a, bb, c = M[0][0], M[1][0], M[2][0]
+    d, e, f = M[1][1], M[2][1], M[2][2]
+    # cofactors of the symmetric matrix [[a, bb, c], [bb, d, e], [c, e, f]]
+    A = sub(mul(d, f), mul(e, e))
+    B = sub(mul(c, e), mul(bb, f))
+    C = sub(mul(bb, e), mul(c, d))
+    D = sub(mul(a, f), mul(c, c))
+    E = sub(mul(bb, c), mul(a, e))
+    F = sub(mul(a, d), mul(bb, bb))
+    det = total([mul(a, A), mul(bb, B), mul(c, C)])
+    inv_det = div(1.0, det)
+    r0, r1, r2 = b
+    return [
+        mul(total([mul(A, r0), mul(B, r1), mul(C, r2)]), inv_det),
+        mul(total([mul(B, r0), mul(D, r1), mul(E, r2)]), inv_det),
+        mul(total([mul(C, r0), mul(E, r1), mul(F, r2)]), inv_det),
+    ], det
+
+
+def to_array(M, like, symmetric: bool = False):
+    n = len(M)
+    rows = []
+    for i in range(n):
+        row = []
+        for j in range(n):
+            x = M[max(i, j)][min(i, j)] if symmetric else M[i][j]
+            row.append(as_array(x, like))
+        rows.append(jnp.stack(row, axis=-1))
+    return jnp.stack(rows, axis=-2)

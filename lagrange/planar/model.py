@@ -1,5 +1,7 @@
 """The planar backend's model: a planar tree as per-link arrays, lowered from a :class:`lagrange.Tree` while tracing
-(:mod:`lagrange.planar.lower`) and read by the unrolled and recursive derivations.
+(:mod:`lagrange.planar.lower`) and read by the unrolled and recursive derivations, and the base of those two backends
+(:class:`AbstractPlanar`; :class:`lagrange.planar.unrolled.Unrolled` and :class:`lagrange.planar.recursive.Recursive`
+derive the equations).
 
 A :class:`PlanarChain` is what a planar chain was when it was a model of its own: ``n`` links, each a revolute or
 prismatic joint, with per-link arrays of mass, length, centre of mass, inertia, damping, springs, ... and its
@@ -11,6 +13,7 @@ their products fold while tracing) and as JAX arrays when they are traced; never
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import ClassVar
 
 import equinox as eqx
 import jax
@@ -18,12 +21,14 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
+from lagrange.backend import AbstractBackend
+from lagrange.forces import actuation_matrix, clamp_controls
 from lagrange.model.link import WORLD, Link
 from lagrange.model.checks import check_laws, check_parents, is_zero, value_of
 from lagrange.model.contact import PenaltyContact
 from lagrange.model.limits import PenaltyLimits
 
-__all__ = ["PlanarChain", "WORLD"]
+__all__ = ["AbstractPlanar", "PlanarChain", "WORLD"]
 
 
 def stack(values, dtype):
@@ -266,3 +271,57 @@ class PlanarChain(eqx.Module):
                 contacts=tuple(tuple(float(x) for x in self.contact_points[c])
                                for c, link in enumerate(self.contact_links) if link == i)))
         return tuple(out)
+
+
+class AbstractPlanar(AbstractBackend):
+    """A planar tree as the planar derivations read it: ``q`` and ``qd`` the links' coordinates and rates.
+
+    Attributes:
+        chain: the lowered tree, its concrete parameters NumPy arrays.
+    """
+
+    chain: PlanarChain
+    euclidean: ClassVar[bool] = True
+
+    @property
+    def nq(self) -> int:
+        return self.chain.n
+
+    @property
+    def nv(self) -> int:
+        return self.chain.n
+
+    @property
+    def m(self) -> int:
+        return self.chain.m
+
+    def check_coordinates(self, name, q):
+        pass  # hinge angles and slides: every value is a configuration
+
+    @property
+    def damping(self):
+        return self.chain.damping
+
+    state_dependent_actuation: ClassVar[bool] = False  # the lowering carries motors only
+
+    def actuation(self, u, q=None, qd=None):
+        if u is None or not self.chain.m:
+            return None
+        return jnp.einsum("ij,...j->...i", actuation_matrix(self.chain), clamp_controls(self.chain, u))
+
+    def spring_forces(self, q):
+        if self.chain.stiffness is None:
+            return None
+        return self.chain.stiffness * (q - self.chain.springref)
+
+    def move(self, q, v, h):
+        return q + h * v
+
+    def rate(self, q, v):
+        return v
+
+    def dexpinv(self, theta, v):
+        return v
+
+    def normalize(self, q):
+        return q

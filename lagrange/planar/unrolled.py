@@ -4,7 +4,7 @@ Call :mod:`lagrange.dynamics`: it checks the arguments and picks this derivation
 (:mod:`lagrange.planar.recursive`) by the chain's size. Here ``J_i`` and ``(dJ_i/dt) qd`` are differentiated at trace
 time from the forward kinematics written as sums of unit vectors (:mod:`lagrange.planar.unitvec`), simplified at trace
 time, so the compiled program contains only the terms the chain has, and ``M qdd = rhs`` is solved unrolled over scalars
-(:func:`lagrange.math.linalg.solve_spd`). For the acrobot this is the closed form a person writes by hand.
+(:func:`lagrange.math.scalar.solve_spd`). For the acrobot this is the closed form a person writes by hand.
 
 Every function takes a chain whose concrete parameters are NumPy arrays (``lagrange.dynamics`` folds them) and
 ``q``/``qd``/``u`` of shape ``(*batch, n)`` (``(*batch, m)``), and returns what the function of the same name in
@@ -17,10 +17,11 @@ import jax.numpy as jnp
 
 from lagrange.math import scalar as s
 from lagrange.planar import unitvec as _unitvec
-from lagrange.math.linalg import solve_spd, to_array
 from lagrange.forces import clamp_controls
-from lagrange.planar.model import WORLD, PlanarChain
+from lagrange.planar.model import WORLD, AbstractPlanar, PlanarChain
 from lagrange.planar.frames import frames
+
+__all__ = ["Unrolled", "bias_forces", "energy", "forward_dynamics", "gravity_forces", "mass_matrix"]
 
 
 def _add_rotational(chain: PlanarChain, M: list[list]) -> list[list]:
@@ -99,7 +100,7 @@ def mass_matrix(chain: PlanarChain, q):
     concrete parameters folded to NumPy arrays); nothing is checked here.
     """
     M, _ = _terms(chain, q, None, mass=True, velocity=False, gravity=False)
-    return to_array(M, q[..., 0], symmetric=True)
+    return s.to_array(M, q[..., 0], symmetric=True)
 
 
 def bias_forces(chain: PlanarChain, q, qd):
@@ -149,8 +150,8 @@ def forward_dynamics(chain: PlanarChain, q, qd, u=None, implicit_damping_dt=None
         for j in chain.damped:
             M[j][j] = s.add(M[j][j], s.mul(implicit_damping_dt, chain.damping[j]))
     if not pivots:
-        return _stack(solve_spd(M, rhs, like), like)
-    qdd, p = solve_spd(M, rhs, like, pivots=True)
+        return _stack(s.solve_spd(M, rhs, like), like)
+    qdd, p = s.solve_spd(M, rhs, like, pivots=True)
     p = jnp.stack(jnp.broadcast_arrays(*(s.as_array(x, like) for x in p)), axis=-1)
     return _stack(qdd, like), jnp.any(~((p > 0) & jnp.isfinite(p)), axis=-1)
 
@@ -184,3 +185,27 @@ def energy(chain: PlanarChain, q, qd):
         for _, r, (_, z) in _spots(chain, q, None)[1]:
             pot = s.add(pot, chain.contact.energy(chain.contact.ground - (s.as_array(z.v, like) - r)))
     return s.as_array(kin, like), s.as_array(pot, like)
+
+
+class Unrolled(AbstractPlanar):
+    """The unrolled relative-angle derivation (:mod:`lagrange.planar.unrolled`): every entry written out, constants
+    folded while tracing; the closed form a person writes by hand for a short chain. Each method is the function of
+    its name in this module, on the lowered chain."""
+
+    def mass_matrix(self, q):
+        return mass_matrix(self.chain, q)
+
+    def bias_forces(self, q, qd):
+        return bias_forces(self.chain, q, qd)
+
+    def gravity_forces(self, q):
+        return gravity_forces(self.chain, q)
+
+    def forward_dynamics(self, q, qd, u=None, implicit_damping_dt=None, *, pivots: bool = False):
+        return forward_dynamics(self.chain, q, qd, u, implicit_damping_dt, pivots=pivots)
+
+    def inverse_dynamics(self, q, qd, qdd):
+        return jnp.einsum("...ij,...j->...i", self.mass_matrix(q), qdd) + self.bias_forces(q, qd)
+
+    def energy(self, q, qd):
+        return energy(self.chain, q, qd)

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+import jax
 import jax.numpy as jnp
+import numpy as np
 
 from lagrange import rbda
 from lagrange.backend import AbstractBackend
@@ -36,6 +38,21 @@ class General(AbstractBackend):
     @property
     def nv(self) -> int:
         return self.tree.nv
+
+    @property
+    def m(self) -> int:
+        return self.tree.m
+
+    def check_coordinates(self, name, q):
+        if isinstance(q, jax.core.Tracer):
+            return
+        for link, j in enumerate(self.tree.joints):
+            if j.nq > j.nv:
+                start = self.tree.qadr[link] + j.nq - 4
+                quat = np.asarray(q)[..., start: start + 4]
+                if not np.all(np.linalg.norm(quat, axis=-1) > 1e-12):
+                    raise ValueError(f"{name}[{start}:{start + 4}] is joint {link}'s quaternion and must not be zero "
+                                     f"(any non-zero length is normalised), got {quat.tolist()}")
 
     @property
     def damping(self):

@@ -23,7 +23,8 @@ from jaxtyping import Array, ArrayLike, Bool, Float, PRNGKeyArray
 
 from lagrange.integrate import step as _step
 from lagrange.model.joints import Hinge, Slide
-from lagrange.integrate.solvers import MomentumEuler, SemiImplicitEuler, check_solver
+from lagrange.integrate.interval import check_solver
+from lagrange.integrate.solvers import MomentumEuler, SemiImplicitEuler
 from lagrange.model.tree import Tree, check_tree
 
 __all__ = ["TaskState", "AbstractTask", "TaskSolver", "control_step", "wrap",

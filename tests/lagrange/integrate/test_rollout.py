@@ -518,3 +518,39 @@ def test_arguments_are_converted_or_refused_by_name():
     ]:
         with pytest.raises(error, match=message):
             lg.step(chain, q, qd, u, 0.01)
+
+
+def test_a_planar_chain_s_simulate_passes_through_eight_library_files_checking_once():
+    """Issue 63's measure of the call path, by ``sys.setprofile``: a planar chain's ``simulate`` enters at most 8 of
+    the library's files once the tree is prepared (today: rollout, interval, dynamics' dispatch, the planar model, the
+    unrolled derivation, its unit-vector and scalar algebra, and the forces), and its first call checks the tree and
+    its parameters exactly once (the second finds them prepared)."""
+    import collections
+    import os
+    import sys
+
+    root = os.path.dirname(lg.__file__)
+    chain = lg.systems.acrobot(masses=(2.5 + np.pi * 1e-9, 2.5))  # parameters no other test prepares: a cold call
+    q0, us = jnp.zeros(2), jnp.zeros((2, 1))
+
+    def trace():
+        files, calls = collections.Counter(), collections.Counter()
+
+        def profile(frame, event, arg):
+            if event == "call" and frame.f_code.co_filename.startswith(root):
+                files[os.path.relpath(frame.f_code.co_filename, root)] += 1
+                calls[frame.f_code.co_name] += 1
+
+        sys.setprofile(profile)
+        try:
+            lg.simulate(chain, q0, q0, us, 0.01)
+        finally:
+            sys.setprofile(None)
+        return files, calls
+
+    _, cold = trace()
+    assert cold["check_tree"] == 1 and cold["check_parameters"] == 1, cold
+    files, warm = trace()
+    assert warm["check_tree"] == warm["check_parameters"] == 0, warm
+    assert len(files) <= 8, sorted(files)
+    assert {"integrate/rollout.py", "planar/unrolled.py"} <= set(files)  # the trace saw the path

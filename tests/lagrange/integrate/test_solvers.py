@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import lagrange as lg
-from lagrange.integrate import solvers
+from lagrange.integrate import interval, solvers
 
 
 def acrobot():
@@ -113,7 +113,7 @@ def test_orders_and_adaptivity():
 def test_unknown_solver_error_names_every_allowed_solver():
     for bad in ("rk4", None, diffrax.Kvaerno5(), 3):
         with pytest.raises(TypeError) as err:
-            solvers.check_solver(bad)
+            interval.check_solver(bad)
         message = str(err.value)
         for cls in solvers.SOLVERS:
             assert f"lagrange.{cls.__name__}()" in message
@@ -121,10 +121,10 @@ def test_unknown_solver_error_names_every_allowed_solver():
     # a class, not an instance: the message says how to write it
     for cls in solvers.SOLVERS:
         with pytest.raises(TypeError, match=rf"got the class {cls.__name__}; write {cls.__name__}\(\)"):
-            solvers.check_solver(cls)
+            interval.check_solver(cls)
     for solver in (cls() for cls in solvers.SOLVERS):
-        solvers.check_solver(solver)  # accepted: returns None
-    solvers.check_solver(diffrax.Heun())  # any other explicit diffrax Runge-Kutta method
+        interval.check_solver(solver)  # accepted: returns None
+    interval.check_solver(diffrax.Heun())  # any other explicit diffrax Runge-Kutta method
 
 
 def test_the_old_name_of_momentum_euler_still_works_with_a_warning():

@@ -21,7 +21,7 @@ import lagrange as lg
 from lagrange.chain import Chain, Link
 from lagrange.dynamics import backend
 from lagrange.interop.mjcf import from_mjcf
-from lagrange.planar.backend import AbstractPlanar
+from lagrange.planar.model import AbstractPlanar
 from lagrange.rbda.backend import General
 from lagrange.tasks.locomotion import hopper_chain
 from tests.helpers import rel
