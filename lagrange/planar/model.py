@@ -13,6 +13,7 @@ their products fold while tracing) and as JAX arrays when they are traced; never
 from __future__ import annotations
 
 from collections.abc import Sequence
+from types import ModuleType
 from typing import ClassVar
 
 import equinox as eqx
@@ -278,10 +279,31 @@ class AbstractPlanar(AbstractBackend):
 
     Attributes:
         chain: the lowered tree, its concrete parameters NumPy arrays.
+        derivation: the module whose functions of the methods' names (``mass_matrix(chain, q)``, ...) derive the
+            equations: :mod:`lagrange.planar.unrolled` or :mod:`lagrange.planar.recursive`.
     """
 
     chain: PlanarChain
     euclidean: ClassVar[bool] = True
+    derivation: ClassVar[ModuleType]
+
+    def mass_matrix(self, q):
+        return self.derivation.mass_matrix(self.chain, q)
+
+    def bias_forces(self, q, qd):
+        return self.derivation.bias_forces(self.chain, q, qd)
+
+    def gravity_forces(self, q):
+        return self.derivation.gravity_forces(self.chain, q)
+
+    def forward_dynamics(self, q, qd, u=None, implicit_damping_dt=None, *, pivots: bool = False):
+        return self.derivation.forward_dynamics(self.chain, q, qd, u, implicit_damping_dt, pivots=pivots)
+
+    def inverse_dynamics(self, q, qd, qdd):
+        return self.derivation.inverse_dynamics(self.chain, q, qd, qdd)
+
+    def energy(self, q, qd):
+        return self.derivation.energy(self.chain, q, qd)
 
     @property
     def nq(self) -> int:

@@ -13,6 +13,10 @@ Every function takes a chain whose concrete parameters are NumPy arrays (``lagra
 
 from __future__ import annotations
 
+import sys
+from types import ModuleType
+from typing import ClassVar
+
 import jax.numpy as jnp
 
 from lagrange.math import scalar as s
@@ -21,7 +25,8 @@ from lagrange.forces import clamp_controls
 from lagrange.planar.model import WORLD, AbstractPlanar, PlanarChain
 from lagrange.planar.frames import frames
 
-__all__ = ["Unrolled", "bias_forces", "energy", "forward_dynamics", "gravity_forces", "mass_matrix"]
+__all__ = ["Unrolled", "bias_forces", "energy", "forward_dynamics", "gravity_forces", "inverse_dynamics",
+           "mass_matrix"]
 
 
 def _add_rotational(chain: PlanarChain, M: list[list]) -> list[list]:
@@ -187,25 +192,13 @@ def energy(chain: PlanarChain, q, qd):
     return s.as_array(kin, like), s.as_array(pot, like)
 
 
+def inverse_dynamics(chain: PlanarChain, q, qd, qdd):
+    """``M qdd + bias``: arguments and result as :func:`lagrange.dynamics.inverse_dynamics`'s, for a prepared chain."""
+    return jnp.einsum("...ij,...j->...i", mass_matrix(chain, q), qdd) + bias_forces(chain, q, qd)
+
+
 class Unrolled(AbstractPlanar):
-    """The unrolled relative-angle derivation (:mod:`lagrange.planar.unrolled`): every entry written out, constants
-    folded while tracing; the closed form a person writes by hand for a short chain. Each method is the function of
-    its name in this module, on the lowered chain."""
+    """The unrolled relative-angle derivation (this module): every entry written out, constants folded while
+    tracing; the closed form a person writes by hand for a short chain."""
 
-    def mass_matrix(self, q):
-        return mass_matrix(self.chain, q)
-
-    def bias_forces(self, q, qd):
-        return bias_forces(self.chain, q, qd)
-
-    def gravity_forces(self, q):
-        return gravity_forces(self.chain, q)
-
-    def forward_dynamics(self, q, qd, u=None, implicit_damping_dt=None, *, pivots: bool = False):
-        return forward_dynamics(self.chain, q, qd, u, implicit_damping_dt, pivots=pivots)
-
-    def inverse_dynamics(self, q, qd, qdd):
-        return jnp.einsum("...ij,...j->...i", self.mass_matrix(q), qdd) + self.bias_forces(q, qd)
-
-    def energy(self, q, qd):
-        return energy(self.chain, q, qd)
+    derivation: ClassVar[ModuleType] = sys.modules[__name__]

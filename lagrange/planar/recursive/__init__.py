@@ -54,6 +54,10 @@ springs, dampers and limits as generalized forces. Functions take ``q``/``qd``/`
 (broadcast against each other) and return the same quantities as :mod:`lagrange.dynamics`.
 """
 
+import sys
+from types import ModuleType
+from typing import ClassVar
+
 from lagrange.planar.model import AbstractPlanar
 from lagrange.planar.recursive.aba import forward_dynamics
 from lagrange.planar.recursive.crba import mass_matrix
@@ -65,23 +69,7 @@ __all__ = ["Recursive", "bias_forces", "energy", "forward_dynamics", "gravity_fo
 
 
 class Recursive(AbstractPlanar):
-    """Featherstone's recursive algorithms on planar spatial vectors (:mod:`lagrange.planar.recursive`): ABA, RNEA
-    and CRBA as scans over the links, O(n) work."""
+    """Featherstone's recursive algorithms on planar spatial vectors (this package): ABA, RNEA and CRBA as scans over
+    the links, O(n) work."""
 
-    def mass_matrix(self, q):
-        return mass_matrix(self.chain, q)
-
-    def bias_forces(self, q, qd):
-        return bias_forces(self.chain, q, qd)
-
-    def gravity_forces(self, q):
-        return gravity_forces(self.chain, q)
-
-    def forward_dynamics(self, q, qd, u=None, implicit_damping_dt=None, *, pivots: bool = False):
-        return forward_dynamics(self.chain, q, qd, u, implicit_damping_dt, pivots=pivots)
-
-    def inverse_dynamics(self, q, qd, qdd):
-        return inverse_dynamics(self.chain, q, qd, qdd)
-
-    def energy(self, q, qd):
-        return energy(self.chain, q, qd)
+    derivation: ClassVar[ModuleType] = sys.modules[__name__]
