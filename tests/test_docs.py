@@ -1,6 +1,7 @@
 """The code the documentation shows runs as printed and gives what the pages say it gives."""
 
 import re
+import warnings
 from pathlib import Path
 
 import jax.numpy as jnp
@@ -19,10 +20,13 @@ def blocks(page: str) -> list[str]:
 
 
 def run_page(page: str, scope: dict | None = None) -> dict:
-    """Every python block of ``page``, in order, in one namespace (as a reader runs them)."""
+    """Every python block of ``page``, in order, in one namespace (as a reader runs them); a deprecated name of
+    lagrange's that the page uses (``Tree.n``, a renamed solver: their ``DeprecationWarning``) fails it."""
     scope = {} if scope is None else scope
-    for i, code in enumerate(blocks(page)):
-        exec(compile(code, f"docs/{page}, python block {i}", "exec"), scope)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("error", r"(Tree\.\w+ is deprecated|lagrange\.\w+ is renamed)", DeprecationWarning)
+        for i, code in enumerate(blocks(page)):
+            exec(compile(code, f"docs/{page}, python block {i}", "exec"), scope)
     return scope
 
 
