@@ -143,9 +143,8 @@ second trace) is not checked and lowered again."""
 
 def _key(tree: Tree, check: bool, general: bool):
     """The tree's static structure and the bytes of its parameters, or ``None`` where one is traced (a tree being
-    differentiated or vmapped is prepared afresh) or for anything but a tree (refused by :func:`backend`)."""
-    if not isinstance(tree, Tree):
-        return None
+    differentiated or vmapped is prepared afresh). The structure names the model's class, so anything but a tree finds
+    no prepared backend and is refused by :func:`backend`'s check."""
     leaves, treedef = jax.tree_util.tree_flatten(tree)
     if any(isinstance(x, jax.core.Tracer) or (isinstance(x, jax.Array) and not x.is_fully_addressable)
            for x in leaves):
