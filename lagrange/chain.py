@@ -122,7 +122,7 @@ class Chain(Tree):
         bodies = [_body(i, lk, None if parents[i] == WORLD else links[parents[i]], parents[i])
                   for i, lk in enumerate(links)]
         motors = [Motor(i, lk.gear, lk.control_range) for i, lk in enumerate(links) if lk.gear is not None]
-        super().__init__(bodies, _vector(0.0, 0.0, _negative(gravity)), motors=motors, contact=contact,
+        super().__init__(bodies, (0.0, 0.0, _negative(gravity)), motors=motors, contact=contact,
                          limits=limits)
 
     def links(self) -> tuple[Link, ...]:

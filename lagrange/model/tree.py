@@ -20,11 +20,12 @@ from collections.abc import Sequence
 from typing import ClassVar
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from lagrange.model.checks import check_array, check_points, traced
+from lagrange.model.checks import check_array, check_points, is_zero, traced
 from lagrange.model.contact import PenaltyContact
 from lagrange.model.joints import AbstractJoint, Free, Hinge, Slide
 from lagrange.model.limits import PenaltyLimits
@@ -212,7 +213,9 @@ class Tree(eqx.Module):
 
     Args:
         bodies: :class:`Body` s, parents before children.
-        gravity: the gravitational acceleration vector [m/s^2] in the world frame (MuJoCo's ``opt.gravity``).
+        gravity: the gravitational acceleration vector [m/s^2] in the world frame (MuJoCo's ``opt.gravity``); a
+            component given as exactly 0 (a number, or an entry of a concrete vector) is structurally absent, as every
+            zero term: it stays 0 where the tree's parameters are traced (:attr:`gravity_support`).
         motors: the :class:`Motor` s, in the order of the controls ``u``.
         muscles: the :class:`lagrange.Muscle` s, their activations the controls after the motors', in order.
         contact: the ground contact law (:class:`lagrange.PenaltyContact`; its ``ground`` the height of the level
@@ -225,6 +228,9 @@ class Tree(eqx.Module):
         parents: each body's parent (:data:`WORLD` for a body of the world); static.
         joint_body: the body of each joint; static.
         qadr, vadr: where each joint's coordinates start in ``q`` and its velocities in ``qd``; static.
+        gravity_support: which of gravity's three components were not given as exactly 0; static. The planar backend
+            reads it where gravity is traced, to know that the part of gravity it cannot carry (across the plane's
+            ``z``) is absent.
 
     Raises:
         TypeError, ValueError: naming the field, for a body that is not one, a parent that is not listed before
@@ -243,6 +249,7 @@ class Tree(eqx.Module):
     joint_body: tuple[int, ...] = eqx.field(static=True)
     qadr: tuple[int, ...] = eqx.field(static=True)
     vadr: tuple[int, ...] = eqx.field(static=True)
+    gravity_support: tuple[bool, bool, bool] = eqx.field(static=True)
 
     def __init__(self, bodies: Sequence[Body], gravity: Float[ArrayLike, "3"] = (0.0, 0.0, -9.81), *,
                  motors: Sequence[Motor] = (), muscles: Sequence[Muscle] = (),
@@ -264,7 +271,14 @@ class Tree(eqx.Module):
             parents.append(p)
         self.bodies = bodies
         self.parents = tuple(parents)
+        support = None
+        if isinstance(gravity, (tuple, list)) and len(gravity) == 3 and traced(*gravity):  # some entries known
+            support = tuple(not is_zero(x) for x in gravity)
+            gravity = jnp.stack([jnp.asarray(x, jax.dtypes.canonicalize_dtype(float)) for x in gravity])
         self.gravity = check_array("Tree.gravity", gravity, (3,))
+        if support is None:
+            support = (True,) * 3 if traced(self.gravity) else tuple(bool(x != 0) for x in self.gravity)
+        self.gravity_support = support
         joint_body, qadr, vadr, nq, nv = [], [], [], 0, 0
         for i, b in enumerate(bodies):
             for j in b.joints:

@@ -151,11 +151,12 @@ def _frames(tree, R_world, X, Y, Z):
 
 def lower(tree) -> PlanarChain | None:
     """The :class:`~lagrange.planar.model.PlanarChain` of a planar tree (the module docstring says how), or ``None``
-    where the tree is planar but the plane cannot carry it: gravity with a part in the plane that is not along one
-    axis of it cannot happen (the plane's ``z`` follows gravity), but a level ground that is not a line ``z = const``
-    of the plane can; a tree without a plane (:attr:`lagrange.Tree.planar` false) has none; and the planar backends
-    add motors only, not actuators whose force depends on the state (:class:`lagrange.model.tree.AffineActuator`,
-    :class:`lagrange.Muscle`).
+    where the tree is planar but the plane cannot carry it: a concrete gravity's in-plane part is along the plane's
+    ``z`` (which follows it), but a traced gravity may have a part along its ``x`` (where
+    :attr:`lagrange.Tree.gravity_support` does not rule that out), and a level ground need not be a line
+    ``z = const`` of the plane; a tree without a plane (:attr:`lagrange.Tree.planar` false) has none; and the planar
+    backends add motors only, listed in the order of their joints, not actuators whose force depends on the state
+    (:class:`lagrange.model.tree.AffineActuator`, :class:`lagrange.Muscle`).
 
     Args:
         tree: a :class:`lagrange.Tree`, its concrete parameters as NumPy arrays or JAX arrays (both fold), traced ones
@@ -164,8 +165,13 @@ def lower(tree) -> PlanarChain | None:
     Y = normal(tree)
     if Y is None or tree.muscles or any(mo.state_dependent for mo in tree.motors):  # the chain carries motors only
         return None
+    order = [mo.joint for mo in tree.motors]
+    if order != sorted(order):  # the chain's u_k drives its k-th actuated joint: motors in joint order only
+        return None
     Y = np.asarray(Y)
     X, Z = _basis(tree, Y)
+    if traced(tree.gravity) and any(on and x != 0 for on, x in zip(tree.gravity_support, X)):
+        return None  # gravity may have a part along the plane's x, which the chain (gravity along -z) cannot carry
     if tree.contact is not None and Z[2] != 1.0:  # the ground z = h must be the plane's line z = h
         return None
     st = Structure(tree)
@@ -238,7 +244,9 @@ def lower(tree) -> PlanarChain | None:
         if not (_is(at[0], tip[0]) and _is(at[1], tip[1])):
             lk["attach"] = (at[0], at[1])
     g = tree.gravity
-    gravity = -float(np.asarray(g, float) @ Z) if not traced(g) else -sum(float(Z[k]) * g[k] for k in range(3) if Z[k])
+    on = tree.gravity_support
+    gravity = -float(np.asarray(g, float) @ Z) if not traced(g) else -sum(float(Z[k]) * g[k] for k in range(3)
+                                                                          if Z[k] and on[k])
     return PlanarChain([Link(length=length[i], **lk) for i, lk in enumerate(links)], gravity,
                        contact=tree.contact if any(lk.get("contacts") for lk in links) else None,
                        limits=tree.limits, dtype=dtype)
@@ -255,7 +263,7 @@ def _add(a, b):
 
 
 def _rotate(R, v):
-    return R @ np.asarray(v, float) if not traced(R, v) else jnp.asarray(R) @ v
+    return R @ np.asarray(v, float) if not traced(R, v) else jnp.asarray(R) @ jnp.asarray(v)
 
 
 def _neg(x):

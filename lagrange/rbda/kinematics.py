@@ -32,9 +32,9 @@ def _value(x):
 
 
 def _pose(body):
-    """A body's placement in its parent's frame: ``(R, p)``."""
-    quat, pos = _value(body.quat), _value(body.pos)
-    return al.quat_to_matrix(quat, _xp(quat, pos)), pos
+    """A body's placement in its parent's frame: ``(R, p)``, ``R`` concrete (the orientation is static) whether or not
+    ``p`` is traced."""
+    return al.quat_to_matrix(np.asarray(body.quat, float), np), _value(body.pos)
 
 
 def placements(structure: Structure):
@@ -60,11 +60,10 @@ def placements(structure: Structure):
         for b in reversed(chain):
             Rb, pb = _pose(tree.bodies[b])
             xp = _xp(R, p, Rb, pb)
-            R, p = R @ Rb, p + R @ pb if xp is np else jnp.asarray(p) + jnp.asarray(R) @ pb
+            R, p = R @ Rb, p + R @ pb if xp is np else jnp.asarray(p) + R @ pb
         Rs.append(R)
         ps.append(p)
-    xp = _xp(*Rs, *ps)
-    return xp.stack(Rs), xp.stack(ps)
+    return np.stack(Rs), _xp(*ps).stack(ps)
 
 
 def body_frames_in_links(structure: Structure) -> dict:
@@ -83,7 +82,7 @@ def body_frames_in_links(structure: Structure) -> dict:
             Rp, pp = frame[tree.parents[b]]
             Rb, pb = _pose(body)
             xp = _xp(Rp, pp, Rb, pb)
-            frame[b] = (Rp @ Rb, pp + Rp @ pb) if xp is np else (jnp.asarray(Rp) @ Rb, pp + jnp.asarray(Rp) @ pb)
+            frame[b] = (Rp @ Rb, pp + Rp @ pb if xp is np else jnp.asarray(pp) + Rp @ pb)
     return frame
 
 

@@ -5,13 +5,14 @@ rollout and its gradient with respect to the initial state and the controls.
 
 The models: the catalogue (the unrolled derivation and, from ``RECURSIVE_MIN`` links, the recursive one), the
 README's biped (contact and limits), DFlex's hopper (contact, limits, armature, damping), Gymnasium's planar models
-read as chains (the planar reader's frames) and as trees (``tree=True``: body for body, several joints in a body,
-joint anchors and ``ref``, which the lowering carries), and a chain with frame offsets, a tilted slide, a reversed
-hinge, springs and a clamped motor. Error = ``max|a - b| / max(1, max|b|)``.
+as ``from_mjcf`` reads them (body for body, several joints in a body, joint anchors and ``ref``, which the lowering
+carries), and a chain with frame offsets, a tilted slide, a reversed hinge, springs and a clamped motor.
+Error = ``max|a - b| / max(1, max|b|)``.
 """
 
 import pathlib
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -21,6 +22,7 @@ import lagrange as lg
 from lagrange.chain import Chain, Link
 from lagrange.dynamics import backend
 from lagrange.interop.mjcf import from_mjcf
+from lagrange.planar.lower import lower
 from lagrange.planar.model import AbstractPlanar
 from lagrange.rbda.backend import General
 from lagrange.tasks.locomotion import hopper_chain
@@ -51,8 +53,8 @@ def frames():
                        control_range=(-1.0, 1.0))], gravity=7.0)
 
 
-def _gym(name, tree, **kw):
-    return lambda: from_mjcf(GYM / name, tree=tree, **kw)
+def _gym(name, **kw):
+    return lambda: from_mjcf(GYM / name, **kw)
 
 
 MODELS = {
@@ -63,14 +65,11 @@ MODELS = {
     "frames": frames,
     "biped": biped,
     "dflex_hopper": hopper_chain,
-    "gym_hopper_chain": _gym("hopper.xml", None, limits=lg.PenaltyLimits(1e3, 10.0),
-                             contact=lg.PenaltyContact(2e4, 1e3, 1e3, 0.9)),
-    "gym_hopper_tree": _gym("hopper.xml", True, limits=lg.PenaltyLimits(1e3, 10.0),
-                            contact=lg.PenaltyContact(2e4, 1e3, 1e3, 0.9)),
-    "gym_cheetah_tree": _gym("half_cheetah.xml", True, limits="ignore", contact="ignore"),
-    "gym_walker_chain": _gym("walker2d_v5.xml", None, limits="ignore", contact="ignore"),
-    "gym_reacher_tree": _gym("reacher.xml", True, limits="ignore", contact="ignore"),
-    "gym_double_pendulum_tree": _gym("inverted_double_pendulum.xml", True, limits="ignore"),
+    "gym_hopper": _gym("hopper.xml", limits=lg.PenaltyLimits(1e3, 10.0), contact=lg.PenaltyContact(2e4, 1e3, 1e3, 0.9)),
+    "gym_cheetah": _gym("half_cheetah.xml", limits="ignore", contact="ignore"),
+    "gym_walker": _gym("walker2d_v5.xml", limits="ignore", contact="ignore"),
+    "gym_reacher": _gym("reacher.xml", limits="ignore", contact="ignore"),
+    "gym_double_pendulum": _gym("inverted_double_pendulum.xml", limits="ignore"),
 }
 
 
@@ -111,3 +110,34 @@ def test_planar_models_agree_both_ways(name):
     for quantity, (_, general) in out.items():
         assert np.all(np.isfinite(np.asarray(general))), quantity
         assert errors[quantity] <= EXACT, (quantity, errors[quantity])
+
+
+def _lowered_inside_jit(tree) -> bool:
+    """Whether the dispatch lowers ``tree`` to the planar backend while its parameters are traced (``filter_jit``)."""
+    seen = []
+
+    def f(t):
+        seen.append(lower(t) is not None)
+        return lg.mass_matrix(t, jnp.zeros(t.nq))
+
+    eqx.filter_jit(f)(tree)
+    return seen[0]
+
+
+def test_traced_parameters_keep_the_planar_backend_only_where_it_is_exact():
+    """A chain's gravity stays along the plane's -z when traced (its other components are structurally zero); a
+    tree with a concrete gravity tilted in its plane is lowered (the plane's z follows it), but with the gravity traced
+    its in-plane tilt is unknown and the general algorithms run; motors listed out of joint order are the general
+    algorithms' too. Each way the accelerations are the general algorithms'."""
+    chain = frames()
+    assert chain.gravity_support == (False, False, True) and _lowered_inside_jit(chain)
+    tilted = lg.Tree(chain.bodies, (0.5, 0.0, -9.81), motors=chain.motors)
+    swapped = lg.Tree(chain.bodies, chain.gravity,
+                      motors=[lg.Motor(2, 1.5), lg.Motor(0, 2.0, control_range=(-1.0, 1.0))])
+    assert lower(tilted) is not None and not _lowered_inside_jit(tilted) and lower(swapped) is None
+    q, qd = jnp.asarray([0.3, -0.1, 0.7]), jnp.asarray([0.5, 0.2, -1.0])
+    for tree, u in ((tilted, jnp.asarray([0.4])), (swapped, jnp.asarray([0.4, -2.0]))):
+        general = lg.dynamics.prepare(tree, general=True).forward_dynamics(q, qd, u)
+        concrete = lg.forward_dynamics(tree, q, qd, u)
+        traced = eqx.filter_jit(lg.forward_dynamics)(tree, q, qd, u)
+        assert rel(concrete, general) <= EXACT and rel(traced, general) <= EXACT
