@@ -5,8 +5,9 @@
 For each model: the mass matrix (``mj_fullM``), the bias forces (``qfrc_bias - qfrc_passive``) and ``qacc`` at 32
 random in-range states, and the worst of 8 rollouts of 100 steps with the model's own integrator
 (``solver_of``) against ``mj_step`` under small random controls (a rollout on which MuJoCo meets a constraint is drawn
-again, since the chain has no joint limits); errors relative, ``max|a - b| / max(1, max|b|)``, float64. A model that
-``from_mjcf`` refuses is listed as refused. Writes ``benchmarks/results/mjcf_import.{json,md}``.
+again, since the model is read without joint limits); errors relative, ``max|a - b| / max(1, max|b|)``, float64. A
+model that ``from_mjcf`` refuses is listed as refused. Then the ten planar trees with a floating base (and the reacher
+with its target) in free flight (:func:`free_flight`). Writes ``benchmarks/results/mjcf_import.{json,md}``.
 """
 
 from __future__ import annotations
@@ -37,6 +38,18 @@ MODELS = {
     "Gymnasium reacher": ("gymnasium", "envs", "mujoco", "assets", "reacher.xml"),
     "Brax inverted pendulum": ("brax", "envs", "assets", "inverted_pendulum.xml"),
     "Brax inverted double pendulum": ("brax", "envs", "assets", "inverted_double_pendulum.xml"),
+}
+TREES = {  # the planar trees with a floating base, and the reacher with its target: compared in free flight
+    "Gymnasium hopper": ("gymnasium", "envs", "mujoco", "assets", "hopper.xml"),
+    "Gymnasium half_cheetah": ("gymnasium", "envs", "mujoco", "assets", "half_cheetah.xml"),
+    "Gymnasium walker2d": ("gymnasium", "envs", "mujoco", "assets", "walker2d.xml"),
+    "Gymnasium reacher": ("gymnasium", "envs", "mujoco", "assets", "reacher.xml"),
+    "dm_control hopper": ("dm_control", "suite", "hopper.xml"),
+    "dm_control cheetah": ("dm_control", "suite", "cheetah.xml"),
+    "dm_control walker": ("dm_control", "suite", "walker.xml"),
+    "Brax hopper": ("brax", "envs", "assets", "hopper.xml"),
+    "Brax half_cheetah": ("brax", "envs", "assets", "half_cheetah.xml"),
+    "Brax walker2d": ("brax", "envs", "assets", "walker2d.xml"),
 }
 
 
@@ -84,6 +97,36 @@ def measure(path: pathlib.Path) -> dict:
     return dict(joints=list(joint_kinds(chain)), integrator=type(solver).__name__, timestep=dt, **err, rollout=rollout)
 
 
+def free_flight(path: pathlib.Path) -> dict:
+    """A planar tree with a floating base (or the reacher's forest) against MuJoCo with every constraint disabled:
+    ``M``, bias and ``qacc`` at 12 random states (6 in range, 6 five times as far and as fast) and one 30-step
+    rollout of the model's own integrator from a calm state (the tests' states)."""
+    model = mujoco.MjModel.from_xml_path(str(path))
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    tree = from_mjcf(path, limits="ignore", contact="ignore")
+    rng = np.random.default_rng(0)
+    q, qd, u = (np.concatenate(x) for x in zip(*(states(model, rng, 6, s) for s in (1.0, 5.0))))
+    ours = jax.jit(jax.vmap(lambda q, qd, u: (lg.mass_matrix(tree, q), lg.bias_forces(tree, q, qd),
+                                              lg.forward_dynamics(tree, q, qd, u if tree.m else None))))(
+        jnp.asarray(q), jnp.asarray(qd), jnp.asarray(u))
+    data, terms = mujoco.MjData(model), 0.0
+    for k in range(len(q)):
+        data.qpos[:], data.qvel[:], data.ctrl[:] = q[k], qd[k], u[k]
+        mujoco.mj_forward(model, data)
+        M = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, data, M)
+        for a, b in zip((o[k] for o in ours), (M, data.qfrc_bias - data.qfrc_passive, data.qacc)):
+            terms = max(terms, rel(a, b))
+    q0, qd0, _ = states(model, rng, 1, 0.05)
+    us = rng.uniform(-0.3, 0.3, (30, model.nu))
+    xs, met = mujoco_rollout(model, q0[0], qd0[0], us)
+    solver, dt = solver_of(model)
+    tr = lg.simulate(tree, jnp.asarray(q0[0]), jnp.asarray(qd0[0]), jnp.asarray(us) if tree.m else None, dt, solver,
+                     steps=30)
+    return dict(planar=bool(tree.planar), terms=terms,
+                rollout=rel(np.concatenate([tr.q[1:], tr.qd[1:]], axis=1), xs[1:]), constraint_met=bool(met))
+
+
 def main():
     rows = {}
     for name, parts in MODELS.items():
@@ -92,16 +135,24 @@ def main():
         except NotImplementedError as err:
             rows[name] = {"refused": str(err)}
         print(name, rows[name])
+    rows["planar trees in free flight"] = trees = {name: free_flight(asset(*parts)) for name, parts in TREES.items()}
+    print("planar trees:", trees)
     write_json(RESULTS / "mjcf_import.json", rows, indent=2)
     lines = ["| model | joints | integrator | M | bias | qacc | 100-step rollout |",
              "|---|---|---|---:|---:|---:|---:|"]
     for name, r in rows.items():
+        if name == "planar trees in free flight":
+            continue
         if "refused" in r:
             lines.append(f"| {name} | refused: its target is a second chain hanging from the world | | | | | |")
             continue
         joints = ", ".join("slide" if j == "prismatic" else "hinge" for j in r["joints"])
         lines.append(f"| {name} | {joints} | {r['integrator']} ({r['timestep']} s) | {r['M']:.0e} | "
                      f"{r['bias']:.0e} | {r['qacc']:.0e} | {r['rollout']:.0e} |")
+    lines += ["", f"The {len(trees)} planar trees in free flight, worst over them: M, bias and qacc "
+              f"{max(r['terms'] for r in trees.values()):.1e}, 30-step rollouts "
+              f"{max(r['rollout'] for r in trees.values()):.1e} "
+              f"(all planar: {all(r['planar'] for r in trees.values())})."]
     write_text(RESULTS / "mjcf_import.md", "\n".join(lines) + "\n")
     print("\n".join(lines))
 

@@ -474,8 +474,8 @@ def legged_main(batch, path):
         engines = {"lagrange": lagrange_engine(chain, lg.SemiImplicitEuler(), model.opt.timestep, argnums=(0, 1)),
                    "mjx": _jax_pair(mjx_rollout(legged_model(xml, constraints, iterations=1), DT), (0, 1)),
                    "brax": _jax_pair(lambda q0, qd0, us: brax(q0 + shift, qd0, us), (0, 1))}
-        row = dict(model=name, dt=model.opt.timestep, n=chain.nv, contact_points=len(chain.contact_links),
-                   states_touching_in_mujoco=touching)
+        row = dict(model=name, dt=model.opt.timestep, n=chain.nv,
+                   contact_points=sum(len(b.contacts) for b in chain.bodies), states_touching_in_mujoco=touching)
         for e, (fwd, grad) in engines.items():
             gb = min(batch, MJX_CONTACT_GRADIENT_BATCH) if e == "mjx" and chain.contact is not None else batch
             repeats = None if e == "lagrange" else 2

@@ -4,7 +4,7 @@ and of the ant on the ground.
     python -m benchmarks.trees3d              # B = 1024, 50 steps, float64
     python -m benchmarks.trees3d --batch 64   # smaller
 
-For each model (constraints disabled, MuJoCo's Euler integrator, the tree read by ``from_mjcf(..., tree=True)``):
+For each model (constraints disabled, MuJoCo's Euler integrator, the tree read by ``from_mjcf``):
 microseconds per environment-step of lagrange's ``simulate`` (``jax.vmap`` over the batch, one jitted program)
 against MuJoCo C's ``mujoco.rollout`` with 2 threads on the same states and controls, the minimum of 3 repeats, both
 in one process; the gradient of a loss of the final state through lagrange's rollout (``jax.grad``); and the
@@ -46,7 +46,7 @@ def free_flight(path):
     model = mujoco.MjModel.from_xml_path(str(path))
     model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
     model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
-    return model, from_mjcf(model, limits="ignore", contact="ignore", tree=True)
+    return model, from_mjcf(model, limits="ignore", contact="ignore")
 
 
 def states(model, rng, B):

@@ -68,5 +68,6 @@ def test_readme_mjcf_example_runs():
     code = re.search(r"Or read one from MJCF.*?```python\n(.*?)```", readme, re.S).group(1)
     scope: dict = {}
     exec(compile(code, "README.md", "exec"), scope)
-    assert joint_kinds(scope["chain"]) == ("prismatic", "revolute", "revolute") and scope["chain"].m == 1
-    assert scope["cheetah"].parents == (-1, 0, 1, 2, 3, 4, 2, 6, 7) and scope["cheetah"].m == 6
+    assert joint_kinds(scope["pendulum"]) == ("prismatic", "revolute", "revolute") and scope["pendulum"].m == 1
+    assert scope["cheetah"].parents == (-1, 0, 1, 2, 0, 4, 5) and scope["cheetah"].m == 6  # torso and two legs
+    assert scope["pendulum"].planar and scope["cheetah"].planar

@@ -1,8 +1,8 @@
-"""The chains and tasks of :mod:`lagrange` in other engines' and ecosystems' formats.
+"""The trees and tasks of :mod:`lagrange` in other engines' and ecosystems' formats.
 
-- :mod:`lagrange.interop.mjcf`: :func:`to_mjcf` writes a chain as an MJCF model, so MuJoCo, MJX and Brax
-  simulate (or show) the very same system; :func:`from_mjcf` reads a planar MJCF model (dm_control's,
-  Gymnasium's, Brax's) through MuJoCo's compiler as a chain with ``q = qpos``.
+- :mod:`lagrange.interop.mjcf`: :func:`to_mjcf` writes a tree as an MJCF model, so MuJoCo, MJX and Brax
+  simulate (or show) the very same system; :func:`from_mjcf` reads an MJCF model (dm_control's, Gymnasium's,
+  Brax's, one's own), planar or 3-D, through MuJoCo's compiler as a tree with ``q = qpos``.
 - :mod:`lagrange.interop.urdf`: :func:`from_urdf` reads a URDF robot as it ships (no mesh opened, inertias as
   written, fixed joints merged, a floating base on request) as a tree, exact against Pinocchio.
 - :mod:`lagrange.interop.brax`: :class:`BraxEnv` puts a task of :mod:`lagrange.tasks` behind Brax's

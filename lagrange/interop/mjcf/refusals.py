@@ -1,5 +1,5 @@
-"""What :func:`lagrange.interop.mjcf.from_mjcf` refuses, by name: the features of a compiled MuJoCo model that a chain
-or a tree cannot reproduce exactly, and the contact pairs MuJoCo's collision driver would test."""
+"""What :func:`lagrange.interop.mjcf.from_mjcf` refuses, by name: the features of a compiled MuJoCo model that a tree
+cannot reproduce exactly, and the contact pairs MuJoCo's collision driver would test."""
 
 from __future__ import annotations
 
@@ -14,26 +14,18 @@ def element_name(mujoco, model, kind, i) -> str:
     return f"{kind} {name!r}" if name else f"{kind} #{i}"
 
 
-def refuse(mujoco, model, limits, contact, *, planar: bool) -> None:
-    """Raise for whatever the chain (``planar``) or the tree cannot reproduce exactly, naming the feature, the
-    element and the way out. Both: friction loss, force-carrying tendons, equality constraints, gravity compensation,
-    fluid forces, actuators other than motors (a tree: or affine actuators) with a positive gear on a hinge or slide,
-    a joint's actuatorfrcrange, two actuators on one joint,
-    limited joints and tendons with ``limits="raise"``, touching geoms with ``contact="raise"``. A chain also: ball and
-    free joints, motors out of joint order, actuators with a bias or a force range."""
+def refuse(mujoco, model, limits, contact) -> None:
+    """Raise for whatever a tree cannot reproduce exactly, naming the feature, the element and the way out: friction
+    loss, force-carrying tendons, equality constraints, gravity compensation, fluid forces, actuators other than
+    motors and affine actuators with a positive gear on a hinge or slide, a joint's actuatorfrcrange, two actuators on
+    one joint, limited joints and tendons with ``limits="raise"``, touching geoms with ``contact="raise"``."""
     off = model.opt.disableflags
     bit = mujoco.mjtDisableBit
     constraints = not off & bit.mjDSBL_CONSTRAINT
     nm = lambda kind, i: element_name(mujoco, model, kind, i)  # noqa: E731
     if model.nq == 0:
-        raise ValueError("from_mjcf: the model has no joint; a chain needs at least one hinge or slide")
+        raise ValueError("from_mjcf: the model has no joint; a tree needs at least one")
     for j in range(model.njnt):
-        kind = mujoco.mjtJoint(model.jnt_type[j])
-        if planar and kind not in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
-            raise NotImplementedError(
-                f"from_mjcf: {nm('joint', j)} is a {kind.name[6:].lower()} joint; a planar chain has hinges and slides "
-                "only (model the motion with hinges and slides in one plane)"
-            )
         if is_limited(mujoco, model, j) and isinstance(limits, str) and limits == "raise":
             raise ValueError(
                 f"from_mjcf: {nm('joint', j)} is limited (range {model.jnt_range[j].tolist()}). from_mjcf(..., "
@@ -49,9 +41,6 @@ def refuse(mujoco, model, limits, contact, *, planar: bool) -> None:
     for t in range(model.ntendon):  # a tendon carries force by a spring, a damper, friction or a (kept) limit
         force = model.tendon_stiffness[t] != 0 or model.tendon_damping[t] != 0 or (
             model.tendon_frictionloss[t] != 0 and constraints and not off & bit.mjDSBL_FRICTIONLOSS)
-        if planar:
-            raise NotImplementedError(f"from_mjcf: the model has {model.ntendon} tendon(s) ({nm('tendon', t)}); a "
-                                      "planar chain has none: remove them")
         if force:
             raise NotImplementedError(f"from_mjcf: {nm('tendon', t)} carries force (stiffness, damping or friction); "
                                       "a tree has no tendons: remove it")
@@ -86,12 +75,6 @@ def refuse(mujoco, model, limits, contact, *, planar: bool) -> None:
                     and model.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_FIXED)
         motor = on_joint and model.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_NONE
         affine = on_joint and model.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_AFFINE
-        if planar and not motor:
-            raise NotImplementedError(
-                f"from_mjcf: {nm('actuator', a)} is not a motor on a joint (force = gain * ctrl, no dynamics, "
-                "no bias); a chain's actuators are motors: replace it with <motor joint=... gear=...>, or read the "
-                "model as a tree (tree=True), which takes <position>, <velocity> and affine <general> actuators"
-            )
         if not (motor or affine):
             raise NotImplementedError(
                 f"from_mjcf: {nm('actuator', a)} is neither a motor nor an affine actuator on a joint (a fixed gain, "
@@ -100,10 +83,6 @@ def refuse(mujoco, model, limits, contact, *, planar: bool) -> None:
                 "tendon, site and body transmissions and activation dynamics (<intvelocity>, filters, muscles) are "
                 "not modelled"
             )
-        if planar and model.actuator_forcelimited[a]:
-            raise NotImplementedError(f"from_mjcf: {nm('actuator', a)} is force-limited; the chain clamps controls "
-                                      "(ctrlrange) but not forces: remove forcerange, express it as a ctrlrange, or "
-                                      "read the model as a tree (tree=True), which clamps forces")
         if affine or model.actuator_forcelimited[a]:
             if model.actuator_gear[a, 0] <= 0:
                 raise NotImplementedError(f"from_mjcf: {nm('actuator', a)} has gear {model.actuator_gear[a, 0]}; an "
@@ -112,7 +91,7 @@ def refuse(mujoco, model, limits, contact, *, planar: bool) -> None:
             raise NotImplementedError(
                 f"from_mjcf: {nm('actuator', a)} has gear * gain = "
                 f"{model.actuator_gear[a, 0] * model.actuator_gainprm[a, 0]}"
-                "; a chain's gears are > 0: flip the joint's axis or the gear's sign in the model"
+                "; a motor's gear is > 0: flip the joint's axis or the gear's sign in the model"
             )
         j = int(model.actuator_trnid[a, 0])
         if mujoco.mjtJoint(model.jnt_type[j]) not in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
@@ -121,16 +100,8 @@ def refuse(mujoco, model, limits, contact, *, planar: bool) -> None:
     joints = model.actuator_trnid[: model.nu, 0]
     if len(set(joints.tolist())) < len(joints):
         j = int(next(x for x in joints if list(joints).count(x) > 1))
-        raise NotImplementedError(f"from_mjcf: {nm('joint', j)} has more than one actuator; a chain's joint has one "
-                                  "motor: merge them")
-    order = [int(j) for j in joints]
-    for a in range(1, len(order) if planar else 0):
-        if order[a] < order[a - 1]:
-            raise NotImplementedError(
-                f"from_mjcf: {nm('actuator', a)} drives {nm('joint', order[a])}, before {nm('actuator', a - 1)}'s "
-                f"{nm('joint', order[a - 1])}: with u = ctrl a chain's actuators are declared in joint order; reorder "
-                "the <actuator> elements"
-            )
+        raise NotImplementedError(f"from_mjcf: {nm('joint', j)} has more than one actuator; a tree's joint has one "
+                                  "actuator: merge them")
     if isinstance(contact, str) and contact == "raise":
         refuse_contacts(mujoco, model, nm)
 
@@ -155,13 +126,13 @@ def refuse_contacts(mujoco, model, nm) -> None:
                "contacts in the model (<option><flag contact=\"disable\"/></option>) or set contype=\"0\" "
                "conaffinity=\"0\" on the geoms")
     if model.npair:
-        raise NotImplementedError(f"from_mjcf: the model has {model.npair} explicit contact pair(s) and the chain has "
-                                  f"no contact; {way_out}")
+        raise NotImplementedError(f"from_mjcf: the model has {model.npair} explicit contact pair(s) with "
+                                  f"contact=\"raise\"; {way_out}")
     pairs = contact_pairs(mujoco, model)
     if pairs:
         shown = ", ".join(f"{nm('geom', g1)} and {nm('geom', g2)}" for g1, g2 in pairs[:4])
         more = f" and {len(pairs) - 4} more pair(s)" if len(pairs) > 4 else ""
-        raise NotImplementedError(f"from_mjcf: geoms can touch ({shown}{more}) and the chain has no contact; "
+        raise NotImplementedError(f"from_mjcf: geoms can touch ({shown}{more}) with contact=\"raise\"; "
                                   f"{way_out}")
 
 
@@ -183,22 +154,22 @@ def ground_geoms(mujoco, model, plane: int) -> list[int]:
     return [g for g in sorted(touching) if model.body_weldid[model.geom_bodyid[g]] != 0]
 
 
-def geom_points(mujoco, model, g: int, centre, R, *, boxes: bool) -> list[tuple[np.ndarray, float]]:
+def geom_points(mujoco, model, g: int, centre, R) -> list[tuple[np.ndarray, float]]:
     """Geom ``g``'s contact points ``[(point, radius), ...]`` from its centre and rotation in any one frame: a
-    capsule's two end points and a sphere's centre with their radius, with ``boxes`` a box's eight corners (radius 0);
+    capsule's two end points and a sphere's centre with their radius, a box's eight corners (radius 0);
     any other type is refused, naming the geom and the shapes taken."""
     kinds, size = mujoco.mjtGeom, np.asarray(model.geom_size[g], float)
     if model.geom_type[g] == kinds.mjGEOM_CAPSULE:
         return [(centre - R[:, 2] * size[1], size[0]), (centre + R[:, 2] * size[1], size[0])]
     if model.geom_type[g] == kinds.mjGEOM_SPHERE:
         return [(centre, size[0])]
-    if boxes and model.geom_type[g] == kinds.mjGEOM_BOX:
+    if model.geom_type[g] == kinds.mjGEOM_BOX:
         signs = [(sx, sy, sz) for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
         return [(centre + R @ (np.array(sign) * size), 0.0) for sign in signs]
-    taken = "capsules, spheres and boxes" if boxes else "capsules and spheres"
     raise NotImplementedError(
         f"from_mjcf: {element_name(mujoco, model, 'geom', g)} is a {kinds(model.geom_type[g]).name[7:].lower()} that "
-        f"can touch the ground; PenaltyContact takes {taken}: replace it, or set its contype and conaffinity to 0")
+        f"can touch the ground; PenaltyContact takes capsules, spheres and boxes: replace it, or set its contype and "
+        "conaffinity to 0")
 
 
 def contact_pairs(mujoco, model) -> list[tuple[int, int]]:

@@ -56,7 +56,7 @@ def compile_model(source):
 
 
 def mujoco_rollout(source, q0, qd0, controls):
-    """MuJoCo's own ``mj_step`` rollout of a model, for cross-checks and for data to identify a chain from.
+    """MuJoCo's own ``mj_step`` rollout of a model, for cross-checks and for data to identify a tree from.
 
     Args:
         source: a path, an MJCF string or a compiled ``mujoco.MjModel`` (:func:`compile_model`).
@@ -66,7 +66,7 @@ def mujoco_rollout(source, q0, qd0, controls):
 
     Returns:
         ``(states, met)``: the states, shape ``(T + 1, nq + nv)``, as rows ``(qpos, qvel)``; and whether MuJoCo met a
-        constraint on the way (a joint limit or a contact, where a chain loaded with ``"ignore"`` by
+        constraint on the way (a joint limit or a contact, where a tree loaded with ``"ignore"`` by
         :func:`from_mjcf` has none). The data of :func:`optim.identify.identify`.
     """
     mujoco = import_mujoco()

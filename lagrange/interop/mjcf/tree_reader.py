@@ -66,7 +66,7 @@ def _contacts(mujoco, model):
     for g in ground_geoms(mujoco, model, plane):
         centre, R = np.asarray(model.geom_pos[g], float), quat_to_matrix(np.asarray(model.geom_quat[g], float), np)
         points.setdefault(int(model.geom_bodyid[g]), []).extend(
-            (*_clean(c).tolist(), float(r)) for c, r in geom_points(mujoco, model, g, centre, R, boxes=True))
+            (*_clean(c).tolist(), float(r)) for c, r in geom_points(mujoco, model, g, centre, R))
     return points, float(model.geom_pos[plane][2])
 
 

@@ -81,13 +81,14 @@ def test_a_rollout_with_servos_and_its_gradient():
     assert abs(float(slope) - float(fd)) <= 1e-7 * max(1.0, abs(float(fd)))
 
 
-def test_a_planar_model_with_a_position_actuator_is_read_as_a_tree():
+def test_a_planar_model_with_a_position_actuator_runs_on_the_general_algorithms():
     xml = ("<mujoco><worldbody><body><joint name='h' type='hinge' axis='0 1 0'/>"
            "<geom type='capsule' fromto='0 0 0 0 0 -1' size='0.05'/></body></worldbody>"
            "<actuator><position joint='h' kp='10'/></actuator></mujoco>")
     tree = from_mjcf(xml)
     assert tree.planar and isinstance(backend(tree), General)  # the planar backends carry motors only
-    with pytest.raises(NotImplementedError, match=r"not a motor on a joint .* read the model as a tree \(tree=True\)"):
+    with pytest.raises(NotImplementedError, match=r"is not a motor: its bias makes it a servo"), \
+            pytest.warns(DeprecationWarning, match="tree= is deprecated"):
         from_mjcf(xml, tree=False)
     by_hand = lg.Tree(tree.bodies, tree.gravity, motors=[lg.AffineActuator.position(0, kp=10.0)])
     q, qd, u = jnp.asarray([0.3]), jnp.asarray([0.2]), jnp.asarray([0.1])

@@ -201,16 +201,18 @@ def test_trees_are_refused_by_default_naming_contact():
 
 def test_tree_structure_is_mujoco_s():
     """The half-cheetah branches at the torso: rootx -> rootz -> rooty, then back and front legs of three links each;
-    its springs are MuJoCo's; the hopper's root hinge turns the other way round to its legs (sense -1 on the legs);
+    its springs are MuJoCo's; the hopper's root hinge turns the other way round to its legs (sense -1 on the root);
     the reacher's target hangs from the world beside the arm."""
     _, cheetah = _free_flight(TREES["gymnasium/half_cheetah"])
     lowered = planar(cheetah)
-    assert cheetah.parents == (-1, 0, 1, 2, 3, 4, 2, 6, 7) and lowered.joints[:3] == ("prismatic",) * 2 + ("revolute",)
+    assert cheetah.parents == (-1, 0, 1, 2, 0, 4, 5) and lowered.parents == (-1, 0, 1, 2, 3, 4, 2, 6, 7)
+    assert lowered.joints[:3] == ("prismatic",) * 2 + ("revolute",)
     assert lowered.sprung == tuple(range(3, 9)) and np.allclose(lowered.stiffness[3:], [240, 180, 120, 180, 120, 60])
     _, hopper = _free_flight(TREES["gymnasium/hopper"])
-    assert planar(hopper).senses == (1, 1, 1, -1, -1, -1)
+    assert planar(hopper).senses == (1, 1, -1, 1, 1, 1)  # the plane's normal is +y: rooty turns about -y
     _, reacher = _free_flight(TREES["gymnasium/reacher"])
-    assert reacher.parents == (-1, 0, -1, 2) and planar(reacher).attached == (2,)
+    assert reacher.parents == (-1, 0, 1, -1)  # body0, body1, the fingertip welded to it, the target
+    assert planar(reacher).parents == (-1, 0, -1, 2)  # its links: the arm's two hinges, the target's two slides
 
 
 @pytest.mark.parametrize("name", ["gymnasium/half_cheetah", "gymnasium/reacher", "gymnasium/hopper"])
@@ -271,8 +273,9 @@ def test_round_trip_through_to_mjcf(name):
     for k in range(len(q)):
         for a, b in zip(mujoco_terms(again, q[k], qd[k], u[k]), mujoco_terms(model, q[k], qd[k], u[k])):
             assert rel(a, b) <= EXACT
-    assert jax.tree_util.tree_all(jax.tree_util.tree_map(
-        lambda a, b: np.allclose(a, b, rtol=1e-12, atol=1e-15), chain, from_mjcf(to_mjcf(chain))))
+    again = from_mjcf(to_mjcf(chain))
+    assert again.parents == chain.parents and [type(j) for j in again.joints] == [type(j) for j in chain.joints]
+    _check_terms(model, again)  # read back from what to_mjcf wrote, it is still MuJoCo's model
 
 
 def _chain_xml(joints: str, body_extra: str = "", model_extra: str = "", option: str = "", child: str = "",
@@ -300,15 +303,15 @@ HINGE = '<joint name="j1" type="hinge" axis="0 1 0"/>'
 GC = '<geom name="gc" type="sphere" size="0.1" pos="0 0 -1"/>'  # on the tip of link b, colliding by default
 GW = '<geom name="gw" type="plane" size="5 5 1" pos="0 0 -3"/>'  # a floor
 
-SPATIAL = [  # what only a tree holds (3-D joints, affine or force-limited actuators): a Tree by default,
-    # refused when a chain is asked for (tree=False)
+SPATIAL = [  # what the planar backend cannot carry (3-D joints, affine or force-limited actuators): a tree on the
+    # general algorithms, refused with the deprecated tree=False
     ("ball joint", _chain_xml('<joint name="j1" type="ball"/>'), "joint 'j1' is a ball joint"),
     ("free joint", _chain_xml('<freejoint name="j1"/>'), "joint 'j1' is a free joint"),
     ("tilted hinge", _chain_xml('<joint name="j1" type="hinge" axis="1 1 0"/>'), "not parallel.*leaves the plane"),
     ("slide out of plane", _chain_xml('<joint name="j1" type="slide" axis="0 1 0"/>'),
      "joint 'j1' slides along .* out of the plane"),
     ("position servo", _chain_xml(HINGE, model_extra='<actuator><position name="p" joint="j1" kp="10"/></actuator>'),
-     "actuator 'p' is not a motor.*tree=True"),
+     "actuator 'p' is not a motor: its bias makes it a servo"),
     ("force limit", _chain_xml(HINGE,
                                model_extra='<actuator><motor name="m" joint="j1" forcerange="-1 1"/></actuator>'),
      "actuator 'm' is force-limited"),
@@ -316,10 +319,20 @@ SPATIAL = [  # what only a tree holds (3-D joints, affine or force-limited actua
 
 
 @pytest.mark.parametrize("what, xml, match", SPATIAL, ids=[r[0] for r in SPATIAL])
-def test_what_only_a_tree_holds_loads_as_a_tree_and_a_chain_refuses_it(what, xml, match):
-    assert isinstance(from_mjcf(xml), Tree)
-    with pytest.raises(NotImplementedError, match=match):
+def test_what_the_planar_backend_cannot_carry_loads_and_the_deprecated_tree_false_refuses_it(what, xml, match):
+    tree = from_mjcf(xml)
+    assert isinstance(tree, Tree) and planar(tree) is None
+    with pytest.raises(NotImplementedError, match=match), pytest.warns(DeprecationWarning, match="tree= is deprecated"):
         from_mjcf(xml, tree=False)
+
+
+def test_a_planar_model_is_lowered_and_the_deprecated_tree_argument_changes_nothing():
+    tree = from_mjcf(MODELS["dm_control/acrobot"])
+    assert tree.planar and planar(tree) is not None
+    for flag in (True, False):
+        with pytest.warns(DeprecationWarning, match="tree= is deprecated"):
+            same = from_mjcf(MODELS["dm_control/acrobot"], tree=flag)
+        assert jax.tree_util.tree_structure(same) == jax.tree_util.tree_structure(tree)
 
 
 REFUSALS = [
@@ -329,15 +342,13 @@ REFUSALS = [
      NotImplementedError, "explicit contact pair"),
     ("friction loss", _chain_xml('<joint name="j1" type="hinge" axis="0 1 0" frictionloss="0.1"/>'),
      NotImplementedError, "joint 'j1' has frictionloss"),
-    ("tendon", _chain_xml(HINGE, model_extra='<tendon><fixed name="t"><joint joint="j1" coef="1"/></fixed></tendon>'),
-     NotImplementedError, "tendon 't'"),
+    ("tendon", _chain_xml(HINGE, model_extra='<tendon><fixed name="t" stiffness="3"><joint joint="j1" coef="1"/>'
+                                             '</fixed></tendon>'),
+     NotImplementedError, "tendon 't' carries force"),
     ("equality", _chain_xml(HINGE, model_extra='<equality><joint name="eq" joint1="j1" joint2="j2"/></equality>'),
      NotImplementedError, "equality 'eq'"),
     ("negative gear", _chain_xml(HINGE, model_extra='<actuator><motor name="m" joint="j1" gear="-2"/></actuator>'),
      NotImplementedError, "actuator 'm' has gear \\* gain = -2"),
-    ("actuator order", _chain_xml(HINGE, model_extra='<actuator><motor name="m2" joint="j2"/><motor name="m1" '
-                                                   'joint="j1"/></actuator>'),
-     NotImplementedError, "actuator 'm1'.*declared in joint order"),
     ("two motors", _chain_xml(HINGE, model_extra='<actuator><motor joint="j1"/><motor joint="j1"/></actuator>'),
      NotImplementedError, "joint 'j1' has more than one actuator"),
     ("limit", _chain_xml('<joint name="j1" type="hinge" axis="0 1 0" range="-1 1" limited="true"/>'), ValueError,
@@ -351,6 +362,17 @@ REFUSALS = [
 def test_refusals_name_the_feature_and_the_element(what, xml, error, match):
     with pytest.raises(error, match=match):
         from_mjcf(xml)
+
+
+def test_actuators_out_of_joint_order_and_a_tendon_without_force_load_as_mujoco_s():
+    """``u = ctrl`` in the actuators' order, whatever the joints' order; a tendon that carries no force changes
+    nothing."""
+    xml = _chain_xml(HINGE, model_extra='<tendon><fixed name="t"><joint joint="j1" coef="1"/></fixed></tendon>'
+                                        '<actuator><motor name="m2" joint="j2" gear="2"/><motor name="m1" joint="j1"/>'
+                                        '</actuator>')
+    model, tree = _load(xml)
+    assert [mo.joint for mo in tree.motors] == [1, 0] and planar(tree) is None  # the general algorithms carry it
+    _check_terms(model, tree)
 
 
 def test_mujoco_rollout_steps_mujoco_and_reports_constraints():

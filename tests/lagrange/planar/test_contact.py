@@ -271,12 +271,20 @@ def test_bad_contact_and_limits_are_refused_by_name(make, error, message):
         make()
 
 
-def test_from_mjcf_refuses_a_box_that_can_touch_the_ground():
+def test_from_mjcf_reads_a_box_that_can_touch_the_ground_as_its_corners_on_the_planar_backend():
+    """A planar box's eight corners project onto the plane in pairs; the planar backend presses each of them as the
+    general algorithms press the corners in 3-D, so the two agree while four corners are below the ground."""
     xml = """<mujoco><worldbody><geom name="floor" type="plane" size="5 5 1"/>
       <body name="b" pos="0 0 1"><joint name="z" type="slide" axis="0 0 1"/><joint name="r" type="hinge" axis="0 1 0"/>
-      <geom name="box" type="box" size="0.1 0.1 0.1"/></body></worldbody></mujoco>"""
-    with pytest.raises(NotImplementedError, match="geom 'box' is a box that can touch the ground; PenaltyContact takes "
-                                                  "capsules and spheres"):
-        from_mjcf(xml, contact=PenaltyContact(KE, KD, KF, MU))
+      <geom name="box" type="box" size="0.1 0.1 0.1"/><geom name="ball" type="ellipsoid" size="0.1 0.1 0.1"
+      contype="0" conaffinity="0"/></body></worldbody></mujoco>"""
+    tree = from_mjcf(xml, contact=PenaltyContact(KE, KD, KF, MU))
+    assert len(tree.bodies[0].contacts) == 8 and planar(tree) is not None
+    q, qd = jnp.asarray([-0.95, 0.2]), jnp.asarray([-0.3, 0.5])  # the box's centre 0.05 above the floor, turned
+    fast = lg.forward_dynamics(tree, q, qd)
+    general = lg.dynamics.prepare(tree, general=True).forward_dynamics(q, qd)
+    assert rel(fast, general) <= 1e-12 and float(jnp.abs(fast[0])) > 1.0  # the ground pushes
+    with pytest.raises(NotImplementedError, match="geom 'ball' is a ellipsoid that can touch the ground"):
+        from_mjcf(xml.replace('contype="0" conaffinity="0"', ""), contact=PenaltyContact(KE, KD, KF, MU))
     with pytest.raises(ValueError, match="limits must be one of .* or a lagrange.PenaltyLimits"):
         from_mjcf(xml, limits=3)

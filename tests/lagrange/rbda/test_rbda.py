@@ -64,7 +64,7 @@ def free_flight(name):
     model = _compile(MODELS[name])
     model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
     model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
-    tree = from_mjcf(model, limits="ignore", contact="ignore", tree=True)
+    tree = from_mjcf(model, limits="ignore", contact="ignore")
     return model, tree
 
 
@@ -130,7 +130,7 @@ def test_to_mjcf_round_trips(name):
     (the same bodies, joints and motors, every parameter to 1e-12)."""
     model, tree = free_flight(name)
     written = mujoco.MjModel.from_xml_string(to_mjcf(tree, timestep=float(model.opt.timestep)))
-    back = from_mjcf(written, limits="ignore", contact="ignore", tree=True)
+    back = from_mjcf(written, limits="ignore", contact="ignore")
     assert back.parents == tree.parents and [type(j) for j in back.joints] == [type(j) for j in tree.joints]
     assert [(m.joint, m.control_range) for m in back.motors] == [(m.joint, m.control_range) for m in tree.motors]
     assert [b.name for b in back.bodies] == [b.name for b in tree.bodies]
