@@ -31,7 +31,8 @@ SHAC and BPTT runs checkpoint every epoch and resume where a killed benchmark le
 start if killed (Brax's trainer keeps no resumable state here). Each finished run is
 ``--runs-dir/<algo>_<task>_<seed>.json``; the table ``benchmarks/results/locomotion.{json,md}`` and the plots
 ``docs/img/locomotion_<task>.png`` (return against env steps and against wall-clock, every seed) are made from all of
-them. ``--plot-only`` restores the run files from the JSON on a fresh clone.
+them. The published runs in the JSON are written back to their run files on a fresh clone (``--plot-only``), and before
+training those not asked for, so that a run of one task leaves the others' rows in the table.
 """
 
 from __future__ import annotations
@@ -50,7 +51,7 @@ import time
 import jax
 import numpy as np
 
-from benchmarks._cli import markdown_table, read_runs, restore_runs, run_file, save_figure, subplots
+from benchmarks._cli import markdown_table, read_runs, run_file, save_figure, subplots
 from benchmarks.algorithms import BraxPolicy
 from lagrange.compile import YNN_OFF_FLAG, compiler_options
 from lagrange.tasks import Ant, Cheetah, Hopper, Humanoid, SNUHumanoid
@@ -220,6 +221,11 @@ def plot_task(task, algos, path):
     save_figure(fig, path, dpi=100)
 
 
+def published_runs(saved: dict) -> list[dict]:
+    """The run records of the published ``locomotion.json``."""
+    return [r for algos in saved["runs"].values() for rs in algos.values() for r in rs]
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--tasks", nargs="+", default=list(TASKS), choices=list(TASKS))
@@ -236,10 +242,16 @@ def main(argv=None):
         if getattr(args, flag) is not None and getattr(args, flag) < 1:
             p.error(f"--{flag.replace('_', '-')} must be >= 1, got {getattr(args, flag)}")
     results = ROOT / "benchmarks" / "results"
-    if args.plot_only:
-        restore_runs(args.runs_dir, results / "locomotion.json",
-                     lambda saved: [r for algos in saved["runs"].values() for rs in algos.values() for r in rs])
-    else:
+    # the published runs not asked for keep their rows (all of them on a fresh clone, or with --plot-only): a run of
+    # one task rewrites the table with every run
+    asked = set() if args.plot_only else {(a, t, s) for t in args.tasks for a in args.algos for s in args.seeds}
+    saved = results / "locomotion.json"
+    pathlib.Path(args.runs_dir).mkdir(parents=True, exist_ok=True)
+    for r in published_runs(json.loads(saved.read_text())) if saved.exists() else []:
+        path = run_file(args.runs_dir, r["algo"], r["task"], r["seed"])
+        if (r["algo"], r["task"], r["seed"]) not in asked and not path.exists():
+            write_json(path, r, indent=2)
+    if not args.plot_only:
         for task in args.tasks:
             for algo in args.algos:
                 for seed in args.seeds:

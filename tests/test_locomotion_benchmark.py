@@ -77,8 +77,7 @@ def test_the_table_and_plots_come_from_the_run_files_and_restore_on_a_fresh_clon
     locomotion.plot_task("ant", runs["ant"], tmp_path / "ant.png")
     assert (tmp_path / "ant.png").read_bytes()[:4] == b"\x89PNG"
     fresh = tmp_path / "fresh"
-    restore_runs(fresh, out / "locomotion.json",
-                 lambda saved: [r for algos in saved["runs"].values() for rs in algos.values() for r in rs])
+    restore_runs(fresh, out / "locomotion.json", locomotion.published_runs)
     assert locomotion.load_runs(fresh) == runs
 
 
