@@ -22,7 +22,8 @@ Writing needs neither MuJoCo nor Brax. The tree is written body for body:
   a moving body whose mass or principal inertia is below ``1e-15``: such a value is written as ``tiny`` (default
   ``1e-12``), the only way the written model can differ from the tree (by at most ``tiny`` times a squared lever arm).
 - Geoms are for looking only (``contype="0" conaffinity="0"``, no mass: the inertials are explicit): a capsule from
-  each body's origin to its ``tip``, a sphere where the tip is at the origin; none for a body without a tip.
+  each body's origin to its ``tip``, a sphere at the origin where the tip is there or the body has none (so that every
+  body shows in a viewer, and Brax, which needs a geom, loads any tree).
 - ``<custom><numeric name="matrix_inv_iterations" data="0"/></custom>`` makes Brax's generalized pipeline solve with
   the exact mass matrix (its default approximates the inverse by Newton-Schulz iterations), so Brax, MuJoCo and
   :class:`lagrange.SemiImplicitEuler` agree step for step.
@@ -148,11 +149,10 @@ def to_mjcf(
         for k, j in enumerate(bd.joints):
             lines.append(inner + _joint(tree, int(first[b]) + k, j, b))
         lines.extend(inner + line for line in _inertial(bd, label, tiny))
-        if bd.tip is not None:
-            tip = _concrete(bd.tip, f"{label}.tip")
-            shape = (f'type="capsule" fromto="{_vec(np.concatenate([np.zeros(3), tip]))}" size="{_num(radius)}"'
-                     if np.any(tip != 0) else f'type="sphere" size="{_num(2 * radius)}"')
-            lines.append(f'{inner}<geom name="geom{b}" {shape} contype="0" conaffinity="0"/>')
+        tip = np.zeros(3) if bd.tip is None else _concrete(bd.tip, f"{label}.tip")
+        shape = (f'type="capsule" fromto="{_vec(np.concatenate([np.zeros(3), tip]))}" size="{_num(radius)}"'
+                 if np.any(tip != 0) else f'type="sphere" size="{_num(2 * radius)}"')
+        lines.append(f'{inner}<geom name="geom{b}" {shape} contype="0" conaffinity="0"/>')
         for site, x in sites.get(b, []):
             lines.append(f'{inner}<site name="{site}" pos="{_vec(x)}"/>')
         for c in children[b]:
