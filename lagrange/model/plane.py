@@ -59,7 +59,9 @@ def _normal(bodies, parents, joints):
     else:  # slides only: the plane they span, else (one direction) the first of y, z, x across every slide
         crossed = [np.cross(a, b) for a in slides for b in slides if np.linalg.norm(np.cross(a, b)) > TOLERANCE]
         candidates = [c / np.linalg.norm(c) for c in crossed[:1]] + [np.eye(3)[k] for k in (1, 2, 0)]
-        n = next(c for c in candidates if all(abs(a @ c) <= TOLERANCE for a in slides))
+        n = next((c for c in candidates if all(abs(a @ c) <= TOLERANCE for a in slides)), None)
+        if n is None:  # slides along three independent directions
+            return None
     if any(abs(a @ n) > TOLERANCE for a in slides):
         return None
     n = n / np.linalg.norm(n)

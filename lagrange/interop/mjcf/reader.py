@@ -92,33 +92,40 @@ def from_mjcf(source, *, limits: str | PenaltyLimits = "raise", contact: str | P
     refuse(mujoco, model, limits, contact)
     out = tree_from_model(mujoco, model, limits, contact)
     if tree is False and lower(out) is None:
-        raise NotImplementedError(f"from_mjcf(..., tree=False): {_off_plane(mujoco, model)}; the planar backend "
+        raise NotImplementedError(f"from_mjcf(..., tree=False): {_off_plane(mujoco, model, out)}; the planar backend "
                                   "cannot carry it: read it without tree=False (a tree on the general algorithms)")
     return out
 
 
-def _off_plane(mujoco, model) -> str:
-    """Why the planar backend cannot carry ``model``, naming the element: a joint that is neither hinge nor slide,
-    a hinge not parallel to the first, a slide out of their plane, an actuator other than a motor."""
+def _off_plane(mujoco, model, tree: Tree) -> str:
+    """Why the planar backend cannot carry ``tree`` (read from ``model``), naming the element: where the tree is not
+    planar, a joint that is neither hinge nor slide, a hinge not parallel to the first, a slide out of their plane;
+    else an actuator other than a motor, actuators out of joint order, or a ground that is not a line of the plane."""
     nm = lambda kind, i: element_name(mujoco, model, kind, i)  # noqa: E731
-    kinds = mujoco.mjtJoint
-    for j in range(model.njnt):
-        if kinds(model.jnt_type[j]) not in (kinds.mjJNT_HINGE, kinds.mjJNT_SLIDE):
-            return f"{nm('joint', j)} is a {kinds(model.jnt_type[j]).name[6:].lower()} joint"
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
-    axes = np.array(data.xaxis)
-    hinges = [j for j in range(model.njnt) if model.jnt_type[j] == kinds.mjJNT_HINGE]
-    for j in hinges[1:]:
-        if np.linalg.norm(np.cross(axes[j], axes[hinges[0]])) > TOLERANCE:
-            return (f"{nm('joint', j)}'s axis {axes[j].round(6).tolist()} is not parallel to "
-                    f"{nm('joint', hinges[0])}'s {axes[hinges[0]].round(6).tolist()}: the model leaves the plane")
-    for j in range(model.njnt):
-        if hinges and model.jnt_type[j] == kinds.mjJNT_SLIDE and abs(axes[j] @ axes[hinges[0]]) > TOLERANCE:
-            return f"{nm('joint', j)} slides along {axes[j].round(6).tolist()}, out of the plane of the hinges"
+    if not tree.planar:
+        kinds = mujoco.mjtJoint
+        for j in range(model.njnt):
+            if kinds(model.jnt_type[j]) not in (kinds.mjJNT_HINGE, kinds.mjJNT_SLIDE):
+                return f"{nm('joint', j)} is a {kinds(model.jnt_type[j]).name[6:].lower()} joint"
+        data = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, data)
+        axes = np.array(data.xaxis)
+        hinges = [j for j in range(model.njnt) if model.jnt_type[j] == kinds.mjJNT_HINGE]
+        for j in hinges[1:]:
+            if np.linalg.norm(np.cross(axes[j], axes[hinges[0]])) > TOLERANCE:
+                return (f"{nm('joint', j)}'s axis {axes[j].round(6).tolist()} is not parallel to "
+                        f"{nm('joint', hinges[0])}'s {axes[hinges[0]].round(6).tolist()}: the model leaves the plane")
+        for j in range(model.njnt):
+            if hinges and model.jnt_type[j] == kinds.mjJNT_SLIDE and abs(axes[j] @ axes[hinges[0]]) > TOLERANCE:
+                return f"{nm('joint', j)} slides along {axes[j].round(6).tolist()}, out of the plane of the hinges"
+        return "its slides move along three independent directions, out of any one plane"
     for a in range(model.nu):
         if model.actuator_forcelimited[a]:
             return f"{nm('actuator', a)} is force-limited (the planar backend carries motors only)"
         if model.actuator_biastype[a] != mujoco.mjtBias.mjBIAS_NONE:
             return f"{nm('actuator', a)} is not a motor: its bias makes it a servo (the planar backend carries motors)"
+    joints = [mo.joint for mo in tree.motors]
+    if joints != sorted(joints):
+        return (f"its actuators drive joints {joints}, out of joint order (the planar backend's k-th control drives "
+                "its k-th actuated joint)")
     return "its ground is not a level line of its plane"

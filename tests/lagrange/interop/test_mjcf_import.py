@@ -315,6 +315,14 @@ SPATIAL = [  # what the planar backend cannot carry (3-D joints, affine or force
     ("force limit", _chain_xml(HINGE,
                                model_extra='<actuator><motor name="m" joint="j1" forcerange="-1 1"/></actuator>'),
      "actuator 'm' is force-limited"),
+    ("motors out of joint order", _chain_xml(HINGE, model_extra='<actuator><motor joint="j2"/><motor joint="j1"/>'
+                                                                '</actuator>'),
+     r"actuators drive joints \[1, 0\], out of joint order"),
+    ("slides in three directions", _chain_xml('<joint name="j1" type="slide" axis="1 0 0"/><joint name="j3" '
+                                              'type="slide" axis="0 1 0"/><joint name="j4" type="slide" axis="0 0 1"/>'
+                                              ).replace('<joint name="j2" type="hinge" axis="0 1 0"/>',
+                                                        '<joint name="j2" type="slide" axis="1 0 0"/>'),
+     "its slides move along three independent directions"),
 ]
 
 

@@ -141,3 +141,12 @@ def test_traced_parameters_keep_the_planar_backend_only_where_it_is_exact():
         concrete = lg.forward_dynamics(tree, q, qd, u)
         traced = eqx.filter_jit(lg.forward_dynamics)(tree, q, qd, u)
         assert rel(concrete, general) <= EXACT and rel(traced, general) <= EXACT
+
+
+def test_slides_along_three_directions_are_not_planar_and_run_on_the_general_algorithms():
+    """Slides only, no common plane: ``Tree.planar`` is false (the plane's search used to raise StopIteration) and a
+    free point mass falls with gravity."""
+    slides = [lg.Slide(axis) for axis in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))]
+    tree = lg.Tree([lg.Body(2.0, np.eye(3), np.zeros(3), joints=slides)], (0.3, 0.0, -9.81))
+    assert not tree.planar and isinstance(backend(tree), General)
+    assert rel(lg.forward_dynamics(tree, jnp.zeros(3), jnp.zeros(3)), jnp.asarray([0.3, 0.0, -9.81])) <= EXACT
