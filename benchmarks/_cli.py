@@ -76,17 +76,20 @@ def read_runs(folder) -> list[dict]:
     return [json.loads(p.read_text()) for p in files if p.stem.rpartition("_")[2].isdigit()]
 
 
-def restore_runs(folder, published: pathlib.Path, runs_of=lambda saved: saved) -> None:
+def restore_runs(folder, published: pathlib.Path, runs_of=lambda saved: saved, keep=None) -> None:
     """On a fresh clone (``runs/`` is not in git: no run file in ``folder``), the runs of the ``published`` JSON
     (``runs_of(its content)``, a list of run dicts) written back to their run files, so that the tables keep them and
-    they are not trained again."""
+    they are not trained again. With ``keep`` (a test of a run dict), whatever the folder holds: each published run
+    that ``keep`` accepts and whose run file is missing."""
     pathlib.Path(folder).mkdir(parents=True, exist_ok=True)
-    if read_runs(folder) or not published.exists():
+    if (keep is None and read_runs(folder)) or not published.exists():
         return
-    runs = runs_of(json.loads(published.read_text()))
+    runs = [r for r in runs_of(json.loads(published.read_text())) if keep is None
+            or (keep(r) and not run_file(folder, r["algo"], r["task"], r["seed"]).exists())]
     for r in runs:
         write_json(run_file(folder, r["algo"], r["task"], r["seed"]), r, indent=2)
-    print(f"restored {len(runs)} run files into {folder} from {published}")
+    if runs:
+        print(f"restored {len(runs)} run files into {folder} from {published}")
 
 
 def markdown_table(rows, keys) -> str:

@@ -51,7 +51,7 @@ import time
 import jax
 import numpy as np
 
-from benchmarks._cli import markdown_table, read_runs, run_file, save_figure, subplots
+from benchmarks._cli import markdown_table, read_runs, restore_runs, run_file, save_figure, subplots
 from benchmarks.algorithms import BraxPolicy
 from lagrange.compile import YNN_OFF_FLAG, compiler_options
 from lagrange.tasks import Ant, Cheetah, Hopper, Humanoid, SNUHumanoid
@@ -245,12 +245,8 @@ def main(argv=None):
     # the published runs not asked for keep their rows (all of them on a fresh clone, or with --plot-only): a run of
     # one task rewrites the table with every run
     asked = set() if args.plot_only else {(a, t, s) for t in args.tasks for a in args.algos for s in args.seeds}
-    saved = results / "locomotion.json"
-    pathlib.Path(args.runs_dir).mkdir(parents=True, exist_ok=True)
-    for r in published_runs(json.loads(saved.read_text())) if saved.exists() else []:
-        path = run_file(args.runs_dir, r["algo"], r["task"], r["seed"])
-        if (r["algo"], r["task"], r["seed"]) not in asked and not path.exists():
-            write_json(path, r, indent=2)
+    restore_runs(args.runs_dir, results / "locomotion.json", published_runs,
+                 keep=lambda r: (r["algo"], r["task"], r["seed"]) not in asked)
     if not args.plot_only:
         for task in args.tasks:
             for algo in args.algos:

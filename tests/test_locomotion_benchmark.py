@@ -86,3 +86,21 @@ def test_a_budget_below_one_step_is_refused_by_name(flag, capsys):
     with pytest.raises(SystemExit):
         locomotion.main([flag, "0", "--tasks", "ant"])
     assert f"{flag} must be >= 1, got 0" in capsys.readouterr().err
+
+
+def test_a_run_of_some_tasks_keeps_the_other_published_rows(tmp_path):
+    """With ``keep``, the published runs it accepts are written back beside the runs the folder already holds (a
+    benchmark of one task must not drop the others from the table); a run file already there is not overwritten."""
+    published = tmp_path / "locomotion.json"
+    records = [_record("shac", "ant", 0, 8000.0, [[0, 0, 100.0]]), _record("shac", "hopper", 0, 4900.0, [[0, 0, 9.0]]),
+               _record("ppo", "ant", 0, 1681.0, [[0, 0, 50.0]])]
+    published.write_text(json.dumps({"runs": {"ant": {"shac": [records[0]], "ppo": [records[2]]},
+                                              "hopper": {"shac": [records[1]]}}}))
+    folder = tmp_path / "runs"
+    folder.mkdir()
+    mine = _record("shac", "ant", 0, 8100.0, [[0, 0, 90.0]])
+    run_file(folder, "shac", "ant", 0).write_text(json.dumps(mine))
+    restore_runs(folder, published, locomotion.published_runs, keep=lambda r: r["algo"] != "ppo")
+    assert json.loads(run_file(folder, "shac", "ant", 0).read_text()) == mine
+    assert json.loads(run_file(folder, "shac", "hopper", 0).read_text()) == records[1]
+    assert not run_file(folder, "ppo", "ant", 0).exists()
