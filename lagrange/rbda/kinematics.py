@@ -59,8 +59,7 @@ def placements(structure: Structure):
         R, p = np.eye(3), np.zeros(3)
         for b in reversed(chain):
             Rb, pb = _pose(tree.bodies[b])
-            xp = _xp(R, p, Rb, pb)
-            R, p = R @ Rb, p + R @ pb if xp is np else jnp.asarray(p) + R @ pb
+            R, p = R @ Rb, p + R @ pb if _xp(p, pb) is np else jnp.asarray(p) + R @ pb  # R, Rb: concrete
         Rs.append(R)
         ps.append(p)
     return np.stack(Rs), _xp(*ps).stack(ps)
@@ -81,8 +80,7 @@ def body_frames_in_links(structure: Structure) -> dict:
         else:  # welded below the body of link k
             Rp, pp = frame[tree.parents[b]]
             Rb, pb = _pose(body)
-            xp = _xp(Rp, pp, Rb, pb)
-            frame[b] = (Rp @ Rb, pp + Rp @ pb if xp is np else jnp.asarray(pp) + Rp @ pb)
+            frame[b] = (Rp @ Rb, pp + Rp @ pb if _xp(pp, pb) is np else jnp.asarray(pp) + Rp @ pb)  # Rp, Rb: concrete
     return frame
 
 
