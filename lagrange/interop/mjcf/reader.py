@@ -45,8 +45,8 @@ def from_mjcf(source, *, limits: str | PenaltyLimits = "raise", contact: str | P
 
     A model whose joints are all hinges about one axis and slides across it (dm_control's, Gymnasium's and Brax's
     pendulums, cartpoles, reachers, hoppers, cheetahs and walkers) is a planar tree (:attr:`lagrange.Tree.planar`):
-    its dynamics are the planar backend's (:mod:`lagrange.planar`) wherever its actuators are motors, and the general
-    algorithms' otherwise; nothing about the reading differs.
+    its dynamics are the planar backend's (:mod:`lagrange.planar`) wherever its actuators are motors listed in
+    joint order, and the general algorithms' otherwise; nothing about the reading differs.
 
     Args:
         source: a path to an MJCF or URDF file, an MJCF string, or a compiled ``mujoco.MjModel``.
